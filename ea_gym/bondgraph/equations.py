@@ -1,0 +1,206 @@
+"""From a bond graph to its linear state-space model, for many parameter sets at once.
+
+The unknowns are the effort and flow of every bond, z = [e_0 .. e_{n-1}, f_0 .. f_{n-1}]. Every bond
+end contributes one equation (constitutive law, junction or two-port relation), so the 2n equations
+M(phi) z = N(phi) x + P u determine z from the energy variables x (p of each I, q of each C) and the
+source values u. Solving them, batched over parameter sets, gives the output map z = Cy x + Dy u and
+the state equation dx/dt = A x + B u (dp/dt = e of each I bond, dq/dt = f of each C bond). Algebraic
+loops are solved exactly by the same linear solve.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ea_gym.bondgraph.causality import Causality, assign_causality
+from ea_gym.bondgraph.elements import CForm, Kind
+from ea_gym.bondgraph.graph import BondGraph, BondGraphError
+
+
+@dataclass(frozen=True)
+class LinearMatrices:
+    """State-space matrices, each with the leading batch shape of the parameters they came from.
+
+    A: (..., nx, nx) in 1/s; B: (..., nx, nu); Cy: (..., 2 n_bonds, nx) and Dy: (..., 2 n_bonds, nu)
+    map (x, u) to the efforts (first n_bonds rows) and flows (last n_bonds rows) of every bond.
+    """
+
+    A: np.ndarray
+    B: np.ndarray
+    Cy: np.ndarray
+    Dy: np.ndarray
+
+
+@dataclass(frozen=True)
+class _Entry:
+    """One parameter-dependent coefficient: ``matrix[row, col] += scale * (value or 1 / value)``."""
+
+    parameter: int
+    matrix: str  # "M" or "N"
+    row: int
+    col: int
+    scale: float
+    reciprocal: bool
+
+
+class StateSpaceModel:
+    """The linear model of a bond graph.
+
+    Attributes:
+        graph: the bond graph.
+        causality: the SCAP result (inspectable inputs S(t) of every element).
+        parameter_names: one per R, C, I, TF, GY element, named after it, in the graph's order.
+        state_names: one per storage element (its energy variable: p for I, q for C).
+        input_names: one per source, in the graph's order.
+    """
+
+    def __init__(self, graph: BondGraph) -> None:
+        self.graph = graph
+        self.causality: Causality = assign_causality(graph)
+        elements = graph.elements
+        bonds = graph.bonds
+        self.n_bonds = n = len(bonds)
+        self.parameter_names = tuple(graph.names(k for k in Kind if k.has_parameter))
+        self.state_names = tuple(graph.names([Kind.I, Kind.C]))
+        self.input_names = tuple(graph.names([Kind.SE, Kind.SF]))
+        self.bond_of: dict[str, int] = {}
+        # +1 where the bond points into the element: then f is the flow into it
+        self.flow_sign: dict[str, float] = {}
+
+        M0 = np.zeros((2 * n, 2 * n))
+        P = np.zeros((2 * n, len(self.input_names)))
+        entries: list[_Entry] = []
+        row = 0
+
+        def e(i: int) -> int:
+            return i
+
+        def f(i: int) -> int:
+            return n + i
+
+        for name, element in elements.items():
+            kind = element.kind
+            ports = graph.bonds_of(name)
+            if kind.is_junction:
+                signs = [1.0 if bonds[i].head == name else -1.0 for i in ports]
+                common, summed = (e, f) if kind is Kind.ZERO else (f, e)
+                for i in ports[1:]:
+                    M0[row, common(ports[0])], M0[row, common(i)] = 1.0, -1.0
+                    row += 1
+                for i, s in zip(ports, signs):
+                    M0[row, summed(i)] = s
+                row += 1
+                continue
+            if kind.is_two_port:
+                a, b = graph.two_port_bonds(name)
+                j = self.parameter_names.index(name)
+                # TF: e_a = n e_b, f_b = n f_a.  GY: e_a = r f_b, e_b = r f_a.
+                pairs = [(e(a), e(b)), (f(b), f(a))] if kind is Kind.TF else [(e(a), f(b)), (e(b), f(a))]
+                for lhs, rhs in pairs:
+                    M0[row, lhs] = 1.0
+                    entries.append(_Entry(j, "M", row, rhs, -1.0, False))
+                    row += 1
+                continue
+            i = ports[0]
+            sign = 1.0 if bonds[i].head == name else -1.0
+            self.bond_of[name] = i
+            self.flow_sign[name] = sign
+            if kind is Kind.SE:
+                M0[row, e(i)] = 1.0
+                P[row, self.input_names.index(name)] = 1.0
+            elif kind is Kind.SF:
+                # the source's value is the flow it delivers, i.e. out of it
+                M0[row, f(i)] = 1.0
+                P[row, self.input_names.index(name)] = -sign
+            elif kind is Kind.R:
+                M0[row, e(i)] = 1.0
+                entries.append(_Entry(self.parameter_names.index(name), "M", row, f(i), -sign, False))
+            elif kind is Kind.C:
+                M0[row, e(i)] = 1.0
+                entries.append(
+                    _Entry(
+                        self.parameter_names.index(name), "N", row, self.state_names.index(name), 1.0,
+                        element.c_form is CForm.CAPACITANCE,
+                    )
+                )
+            else:  # I: flow into the element = p / I
+                M0[row, f(i)] = sign
+                entries.append(_Entry(self.parameter_names.index(name), "N", row, self.state_names.index(name), 1.0, True))
+            row += 1
+        assert row == 2 * n, "every bond end contributes exactly one equation"
+
+        self._M0 = M0
+        self._P = P
+        self._entries = tuple(entries)
+        # dx/dt = S z: dp/dt = effort of an I bond, dq/dt = flow into a C element
+        S = np.zeros((len(self.state_names), 2 * n))
+        for k, name in enumerate(self.state_names):
+            i = self.bond_of[name]
+            if elements[name].kind is Kind.I:
+                S[k, e(i)] = 1.0
+            else:
+                S[k, f(i)] = self.flow_sign[name]
+        self._S = S
+
+    @property
+    def n_states(self) -> int:
+        return len(self.state_names)
+
+    @property
+    def n_inputs(self) -> int:
+        return len(self.input_names)
+
+    def matrices(self, parameters: np.ndarray) -> LinearMatrices:
+        """State-space and output matrices for parameter vectors of shape (..., n_parameters).
+
+        Raises:
+            BondGraphError: when the junction equations are singular for some parameter set (an
+                ill-posed algebraic loop), naming the parameter values.
+        """
+        theta = np.asarray(parameters, dtype=float)
+        if theta.shape[-1:] != (len(self.parameter_names),):
+            raise ValueError(
+                f"parameters must have a last axis of length {len(self.parameter_names)} "
+                f"({list(self.parameter_names)}), got shape {theta.shape}"
+            )
+        batch = theta.shape[:-1]
+        M = np.broadcast_to(self._M0, batch + self._M0.shape).copy()
+        N = np.zeros(batch + (2 * self.n_bonds, self.n_states))
+        for entry in self._entries:
+            value = theta[..., entry.parameter]
+            coefficient = entry.scale / value if entry.reciprocal else entry.scale * value
+            target = M if entry.matrix == "M" else N
+            target[..., entry.row, entry.col] += coefficient
+        rhs = np.concatenate([N, np.broadcast_to(self._P, batch + self._P.shape)], axis=-1)
+        try:
+            X = np.linalg.solve(M, rhs)
+        except np.linalg.LinAlgError:
+            raise BondGraphError(
+                "the bond-graph equations are singular for these parameters (an ill-posed algebraic loop "
+                f"through {list(self.causality.algebraic_loop)})"
+            ) from None
+        Cy, Dy = X[..., : self.n_states], X[..., self.n_states :]
+        return LinearMatrices(A=self._S @ Cy, B=self._S @ Dy, Cy=Cy, Dy=Dy)
+
+    def element_signals(self, bond_values: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+        """Split bond efforts and flows (..., 2 n_bonds) into per-element effort and flow.
+
+        The flow of R, C and I elements is the flow into them (power e*f > 0 is absorbed); the flow of
+        a source is the flow it delivers; a TF or GY reports its incoming bond.
+        """
+        effort: dict[str, np.ndarray] = {}
+        flow: dict[str, np.ndarray] = {}
+        for name, element in self.graph.elements.items():
+            if element.kind.is_junction:
+                continue
+            if element.kind.is_two_port:
+                i, sign = self.graph.two_port_bonds(name)[0], 1.0
+            else:
+                i, sign = self.bond_of[name], self.flow_sign[name]
+                if element.kind.is_source:
+                    sign = -sign
+            effort[name] = bond_values[..., i]
+            flow[name] = sign * bond_values[..., self.n_bonds + i]
+        return effort, flow

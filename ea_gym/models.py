@@ -1,0 +1,200 @@
+"""Built-in systems: a bond graph with its nominal component values and safe limits.
+
+``spring_mass_damper`` is the paper's system (Fig 6-7, Table 2), ``rlc_circuit`` its electrical
+example (Fig 3-4) and ``dc_motor`` a motor driving a damped inertia (a GY element joins the
+electrical and mechanical domains).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, replace
+from functools import cached_property
+
+import numpy as np
+
+from ea_gym.bondgraph.elements import Kind
+from ea_gym.bondgraph.equations import StateSpaceModel
+from ea_gym.bondgraph.graph import BondGraph
+
+
+class ParameterError(ValueError):
+    """A component value or safe limit that is unknown or outside its physical range."""
+
+
+@dataclass(frozen=True)
+class SystemModel:
+    """A physical system ready to simulate.
+
+    Attributes:
+        name: registry name.
+        graph: the bond graph; parametrised elements are named after their parameter.
+        nominal: nominal component value of every parametrised element (SI, see ``units``).
+        safe_limits: (lower, upper) safe limits of the degradable parameters (same units).
+        units: SI unit of every parameter and of the load.
+        load_source: the source element driven by a scenario's load.
+        nominal_load: the load's nominal value (N, V, ...), e.g. Table 2's F = 10 N.
+        description: one line for people.
+    """
+
+    name: str
+    graph: BondGraph
+    nominal: Mapping[str, float]
+    safe_limits: Mapping[str, tuple[float, float]]
+    units: Mapping[str, str]
+    load_source: str
+    nominal_load: float
+    description: str = ""
+
+    def __post_init__(self) -> None:
+        names = self.state_space.parameter_names
+        if self.load_source not in self.state_space.input_names:
+            raise ParameterError(
+                f"model {self.name!r}: load_source {self.load_source!r} is not a source; "
+                f"sources are {list(self.state_space.input_names)}"
+            )
+        if len(self.state_space.input_names) != 1:
+            raise ParameterError(f"model {self.name!r}: exactly one source is supported, got {list(self.state_space.input_names)}")
+        missing = sorted(set(names) - set(self.nominal))
+        if missing:
+            raise ParameterError(f"model {self.name!r}: no nominal value for {missing}")
+        for key, value in self.nominal.items():
+            self.check_value(key, value, f"nominal value of {key!r}")
+        for key, bounds in self.safe_limits.items():
+            self.check_limits(key, bounds, f"safe limits of {key!r}")
+
+    @cached_property
+    def state_space(self) -> StateSpaceModel:
+        return StateSpaceModel(self.graph)
+
+    @property
+    def parameter_names(self) -> tuple[str, ...]:
+        return self.state_space.parameter_names
+
+    @property
+    def state_names(self) -> tuple[str, ...]:
+        return self.state_space.state_names
+
+    @property
+    def rco_elements(self) -> tuple[str, ...]:
+        """The R, C and I elements: the components whose EA enters the EAI sum (eq 5)."""
+        return tuple(self.graph.names([Kind.R, Kind.C, Kind.I]))
+
+    def parameter_vector(self, values: Mapping[str, float] | None = None) -> np.ndarray:
+        """Nominal values, with ``values`` overriding some, as an array in ``parameter_names`` order."""
+        merged = {**self.nominal, **(values or {})}
+        return np.array([merged[name] for name in self.parameter_names], dtype=float)
+
+    def check_name(self, name: str, what: str) -> None:
+        if name not in self.parameter_names:
+            raise ParameterError(
+                f"{what}: unknown parameter {name!r} for system {self.name!r}; "
+                f"valid parameters are {list(self.parameter_names)}"
+            )
+
+    def check_value(self, name: str, value: float, what: str) -> None:
+        """Every component value must be finite and strictly positive."""
+        self.check_name(name, what)
+        if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            raise ParameterError(
+                f"{what}: {name!r} = {value!r} is outside its physical range; expected a finite value > 0 "
+                f"{self.units.get(name, '')}".rstrip()
+            )
+
+    def check_limits(self, name: str, bounds: tuple[float, float], what: str) -> None:
+        self.check_name(name, what)
+        lower, upper = bounds
+        self.check_value(name, lower, f"{what} (lower)")
+        self.check_value(name, upper, f"{what} (upper)")
+        if not lower < upper:
+            raise ParameterError(f"{what}: lower limit {lower} must be below upper limit {upper}")
+
+    def with_overrides(
+        self,
+        parameters: Mapping[str, float] | None = None,
+        limits: Mapping[str, tuple[float, float]] | None = None,
+    ) -> SystemModel:
+        """A copy with some nominal values and safe limits replaced (both checked)."""
+        for key, value in (parameters or {}).items():
+            self.check_value(key, value, f"parameters.{key}")
+        for key, bounds in (limits or {}).items():
+            self.check_limits(key, tuple(bounds), f"limits.{key}")
+        return replace(
+            self,
+            nominal={**self.nominal, **(parameters or {})},
+            safe_limits={**self.safe_limits, **{k: tuple(v) for k, v in (limits or {}).items()}},
+        )
+
+
+def spring_mass_damper() -> SystemModel:
+    """The paper's spring-mass-damper (Fig 6-7, Table 2): Se F -> 1-junction -> I m, C k, R b."""
+    g = BondGraph()
+    g.add("F", Kind.SE).add("v", Kind.ONE)
+    g.add("m", Kind.I).add("k", Kind.C, c_form="stiffness").add("b", Kind.R)
+    for element in ("m", "k", "b"):
+        g.connect("v", element)
+    g.connect("F", "v")
+    return SystemModel(
+        name="spring_mass_damper",
+        graph=g,
+        nominal={"m": 10.0, "k": 100.0, "b": 0.5},
+        safe_limits={"k": (85.0, 105.0), "m": (9.0, 11.0), "b": (0.4, 0.6)},
+        units={"m": "kg", "k": "N/m", "b": "N s/m", "F": "N"},
+        load_source="F",
+        nominal_load=10.0,
+        description="Spring-mass-damper of the paper's Fig 6-7 and Table 2",
+    )
+
+
+def rlc_circuit() -> SystemModel:
+    """The circuit of the paper's Fig 3-4: Se -> 1 (R1, L1) -> 0 (C1, R2)."""
+    g = BondGraph()
+    g.add("U", Kind.SE).add("i", Kind.ONE).add("u_c", Kind.ZERO)
+    g.add("R1", Kind.R).add("L1", Kind.I).add("C1", Kind.C).add("R2", Kind.R)
+    g.connect("U", "i").connect("i", "R1").connect("i", "L1").connect("i", "u_c")
+    g.connect("u_c", "C1").connect("u_c", "R2")
+    return SystemModel(
+        name="rlc_circuit",
+        graph=g,
+        nominal={"R1": 2.0, "L1": 1.0, "C1": 0.01, "R2": 50.0},
+        safe_limits={"R1": (1.6, 2.4), "L1": (0.9, 1.1), "C1": (0.008, 0.012), "R2": (40.0, 60.0)},
+        units={"R1": "ohm", "L1": "H", "C1": "F", "R2": "ohm", "U": "V"},
+        load_source="U",
+        nominal_load=10.0,
+        description="RLC circuit of the paper's Fig 3-4",
+    )
+
+
+def dc_motor() -> SystemModel:
+    """A DC motor driving a damped inertia: Se V -> 1 (Ra, La) -> GY K -> 1 (J, bm)."""
+    g = BondGraph()
+    g.add("V", Kind.SE).add("i", Kind.ONE).add("K", Kind.GY).add("w", Kind.ONE)
+    g.add("Ra", Kind.R).add("La", Kind.I).add("J", Kind.I).add("bm", Kind.R)
+    g.connect("V", "i").connect("i", "Ra").connect("i", "La").connect("i", "K")
+    g.connect("K", "w").connect("w", "J").connect("w", "bm")
+    return SystemModel(
+        name="dc_motor",
+        graph=g,
+        nominal={"Ra": 1.0, "La": 0.05, "K": 0.1, "J": 0.01, "bm": 0.001},
+        safe_limits={"Ra": (0.8, 1.3), "La": (0.045, 0.055), "K": (0.09, 0.11), "J": (0.009, 0.011), "bm": (0.0008, 0.0015)},
+        units={"Ra": "ohm", "La": "H", "K": "N m/A", "J": "kg m^2", "bm": "N m s/rad", "V": "V"},
+        load_source="V",
+        nominal_load=12.0,
+        description="DC motor (armature Ra, La; torque constant K) driving a damped inertia (J, bm)",
+    )
+
+
+MODELS: dict[str, Callable[[], SystemModel]] = {
+    "spring_mass_damper": spring_mass_damper,
+    "rlc_circuit": rlc_circuit,
+    "dc_motor": dc_motor,
+}
+
+
+def get_model(name: str) -> SystemModel:
+    """The built-in model ``name``; the error lists the valid names."""
+    try:
+        return MODELS[name]()
+    except KeyError:
+        raise ParameterError(f"unknown system {name!r}; valid systems are {sorted(MODELS)}") from None

@@ -1,0 +1,322 @@
+"""Scenario files: which system to run, under which load, for how long, with which fault.
+
+A scenario is a JSON file (or YAML when the path ends in .yaml/.yml), e.g. the paper's::
+
+    {"system": "spring_mass_damper",
+     "parameters": {"m": 10.0, "k": 100.0, "b": 0.5},
+     "limits": {"k": [85, 105]},
+     "load": {"kind": "constant", "value": 10.0},
+     "duration": 120.0, "sample_rate": 100.0,
+     "initial_state": {"k": 0.01},
+     "fault": {"parameter": "k", "profile": [[0, 100], [5, 100], [50, 86.5], [100, 100]]},
+     "sensors": {"noise": 0.01, "seed": 0}}
+
+The load is one of ``{"kind": "constant", "value"}``, ``{"kind": "sines", "offset", "sines":
+[{"amplitude", "frequency", "phase"}]}`` or ``{"kind": "random", "mean", "std", "bandwidth",
+"seed"}``; load values are in the source's unit (N, V, ...), frequencies in Hz, phases in rad.
+Parameters and limits are in SI (see ``SystemModel.units``), times in s, the sample rate in Hz,
+initial states are energy variables (p in kg m/s or V s, q in m or C), and the sensor noise is a
+standard deviation as a fraction of each measured signal's RMS.
+
+:func:`load_scenario` validates everything and raises :class:`ScenarioError` listing, one line
+each, the field path and what was expected.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
+
+from ea_gym.degradation import PiecewiseLinearProfile, ProfileError
+from ea_gym.loads import ConstantLoad, Load, RandomLoad, Sine, SinesLoad
+from ea_gym.models import ParameterError, SystemModel, get_model
+
+# Strict: no silent conversion of "10" or true to a number.
+Real = Annotated[float, Strict()]
+Integer = Annotated[int, Strict()]
+
+
+class ScenarioError(ValueError):
+    """An invalid scenario; the message lists one ``<field.path>: <expected>`` line per problem."""
+
+    problems: tuple[str, ...] = ()
+
+    @classmethod
+    def from_problems(cls, source: str, problems: Sequence[str]) -> ScenarioError:
+        error = cls("\n  ".join([f"invalid scenario ({source}):", *problems]))
+        error.problems = tuple(problems)
+        return error
+
+
+class _Spec(BaseModel):
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False, frozen=True)
+
+
+class ConstantLoadSpec(_Spec):
+    """A constant load of ``value`` (N, V, ...)."""
+
+    kind: Literal["constant"]
+    value: Real
+
+    def make(self) -> Load:
+        return ConstantLoad(level=self.value)
+
+
+class SineSpec(_Spec):
+    """amplitude (load unit) * sin(2 pi frequency (Hz) t + phase (rad))."""
+
+    amplitude: Real
+    frequency: Real = Field(ge=0)
+    phase: Real = 0.0
+
+
+class SinesLoadSpec(_Spec):
+    """offset + sum of sines (load unit; frequency in Hz, phase in rad)."""
+
+    kind: Literal["sines"]
+    offset: Real = 0.0
+    sines: list[SineSpec]
+
+    def make(self) -> Load:
+        return SinesLoad(self.offset, tuple(Sine(s.amplitude, s.frequency, s.phase) for s in self.sines))
+
+
+class RandomLoadSpec(_Spec):
+    """A band-limited random load (load unit; bandwidth in Hz) drawn from ``seed``."""
+
+    kind: Literal["random"]
+    mean: Real
+    std: Real = Field(ge=0)
+    bandwidth: Real = Field(gt=0)
+    seed: Integer = Field(ge=0)
+
+    def make(self) -> Load:
+        return RandomLoad.draw(self.mean, self.std, self.bandwidth, np.random.default_rng(self.seed))
+
+
+LoadSpec = Annotated[Union[ConstantLoadSpec, SinesLoadSpec, RandomLoadSpec], Field(discriminator="kind")]
+_LOAD_KINDS = ("constant", "sines", "random")
+
+
+class FaultFields(_Spec):
+    """The fault's fields: ``profile`` is a list of (time s, value in the parameter's SI unit)."""
+
+    parameter: str
+    profile: list[tuple[Real, Real]] = Field(min_length=1)
+
+
+class SensorFields(_Spec):
+    """Sensor noise std as a fraction of each measured signal's RMS, and its seed."""
+
+    noise: Real = Field(default=0.0, ge=0)
+    seed: Integer = Field(default=0, ge=0)
+
+
+class ScenarioSpec(_Spec):
+    """The schema of a scenario file (checked field by field; cross-field checks are in load_scenario)."""
+
+    system: str
+    parameters: dict[str, Real] = {}
+    limits: dict[str, tuple[Real, Real]] = {}
+    load: LoadSpec
+    duration: Real = Field(gt=0)
+    sample_rate: Real = Field(default=100.0, gt=0)
+    initial_state: dict[str, Real] = {}
+    fault: FaultFields | None = None
+    sensors: SensorFields = SensorFields()
+
+
+@dataclass(frozen=True)
+class FaultSpec:
+    """A fault: ``parameter``'s value follows ``profile`` (s -> the parameter's SI unit)."""
+
+    parameter: str
+    profile: PiecewiseLinearProfile
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """A validated scenario.
+
+    Attributes:
+        system: the model's registry name.
+        model: the model with the scenario's parameter and limit overrides applied.
+        load_spec: the load's validated spec; :meth:`make_load` builds the load.
+        duration: simulated time (s).
+        sample_rate: sampling rate (Hz); duration * sample_rate is an integer.
+        initial_state: energy variable of some storage elements at t = 0 (the rest are 0).
+        fault: the degrading parameter and its profile, or None.
+        noise: sensor noise std as a fraction of each measured signal's RMS.
+        sensor_seed: seed of the sensor noise.
+        source: the file path, or "dict".
+        spec: the whole validated file, for :meth:`to_dict`.
+    """
+
+    system: str
+    model: SystemModel
+    load_spec: ConstantLoadSpec | SinesLoadSpec | RandomLoadSpec
+    duration: float
+    sample_rate: float
+    initial_state: dict[str, float]
+    fault: FaultSpec | None
+    noise: float
+    sensor_seed: int
+    source: str
+    spec: ScenarioSpec = field(repr=False)
+
+    @property
+    def n_samples(self) -> int:
+        """Number of sampling intervals in [0, duration]."""
+        return int(round(self.duration * self.sample_rate))
+
+    def times(self) -> np.ndarray:
+        """The n_samples + 1 sample times 0, 1/sample_rate, ..., duration (s)."""
+        return np.arange(self.n_samples + 1) / self.sample_rate
+
+    def make_load(self) -> Load:
+        return self.load_spec.make()
+
+    def parameters_at(self, t: np.ndarray) -> np.ndarray:
+        """Parameter values at times t (s): shape t.shape + (n_parameters,), ``model.parameter_names`` order."""
+        t = np.asarray(t, dtype=float)
+        nominal = self.model.parameter_vector()
+        values = np.broadcast_to(nominal, t.shape + nominal.shape).copy()
+        if self.fault is not None:
+            values[..., self.model.parameter_names.index(self.fault.parameter)] = self.fault.profile.value(t)
+        return values
+
+    def initial_state_vector(self) -> np.ndarray:
+        """Initial energy variables in ``model.state_names`` order (0 = at rest)."""
+        return np.array([self.initial_state.get(name, 0.0) for name in self.model.state_names], dtype=float)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The validated scenario as JSON-ready data; load_scenario(to_dict()) gives it back."""
+        return self.spec.model_dump(mode="json")
+
+
+def _field_path(loc: Sequence[str | int]) -> str:
+    path = ""
+    for i, part in enumerate(loc):
+        # A discriminated union puts the tag in the path (load.sines.offset); drop it.
+        if i == 1 and loc[0] == "load" and part in _LOAD_KINDS:
+            continue
+        path += f"[{part}]" if isinstance(part, int) else (f".{part}" if path else str(part))
+    return path
+
+
+def _pydantic_problems(error: ValidationError) -> list[str]:
+    problems = []
+    for err in error.errors():
+        path = _field_path(err["loc"])
+        if err["type"] in ("union_tag_invalid", "union_tag_not_found"):
+            got = f"got {err['ctx']['tag']!r}" if err["type"] == "union_tag_invalid" else "missing"
+            problems.append(f"{path}.kind: expected one of {', '.join(map(repr, _LOAD_KINDS))} ({got})")
+        elif err["type"] == "missing" or isinstance(err["input"], (Mapping, list)):
+            problems.append(f"{path}: {err['msg']}")
+        else:
+            problems.append(f"{path}: {err['msg']} (got {err['input']!r})")
+    return problems
+
+
+def _is_yaml(path: Path) -> bool:
+    return path.suffix.lower() in (".yaml", ".yml")
+
+
+def _read(path: Path) -> Any:
+    text = path.read_text(encoding="utf-8")
+    return yaml.safe_load(text) if _is_yaml(path) else json.loads(text)
+
+
+def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any]) -> Scenario:
+    """Read (from a JSON/YAML file, or a mapping) and validate a scenario; raises ScenarioError."""
+    if isinstance(source, Mapping):
+        name, data = "dict", dict(source)
+    else:
+        name = os.fspath(source)
+        try:
+            data = _read(Path(name))
+        except OSError as exc:
+            raise ScenarioError.from_problems(name, [f"cannot read the file: {exc.strerror or exc}"]) from None
+        except (json.JSONDecodeError, yaml.YAMLError, UnicodeDecodeError) as exc:
+            syntax = "YAML" if _is_yaml(Path(name)) else "JSON"
+            raise ScenarioError.from_problems(name, [f"the file is not valid {syntax}: {exc}"]) from None
+        if not isinstance(data, dict):
+            raise ScenarioError.from_problems(name, [f"the top level must be an object, got {type(data).__name__}"])
+    try:
+        spec = ScenarioSpec.model_validate(data)
+    except ValidationError as exc:
+        raise ScenarioError.from_problems(name, _pydantic_problems(exc)) from None
+    try:
+        model = get_model(spec.system)
+    except ParameterError as exc:
+        raise ScenarioError.from_problems(name, [f"system: {exc}"]) from None
+
+    problems: list[str] = []
+    try:
+        model = model.with_overrides(spec.parameters, spec.limits)
+    except ParameterError as exc:
+        problems.append(str(exc))
+    samples = spec.duration * spec.sample_rate
+    if round(samples) < 1 or not math.isclose(samples, round(samples), rel_tol=1e-9, abs_tol=1e-9):
+        problems.append(
+            f"duration: duration * sample_rate = {samples!r} must be a whole number (>= 1) of samples"
+        )
+    for key in spec.initial_state:
+        if key not in model.state_names:
+            problems.append(
+                f"initial_state.{key}: unknown state {key!r} for system {model.name!r}; "
+                f"valid states are {list(model.state_names)}"
+            )
+    if isinstance(spec.load, RandomLoadSpec) and not spec.load.bandwidth < spec.sample_rate / 2:
+        problems.append(
+            f"load.bandwidth: {spec.load.bandwidth!r} Hz must be below the Nyquist frequency "
+            f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
+        )
+    fault = None
+    if spec.fault is not None:
+        fault, fault_problems = _fault(model, spec.fault)
+        problems += fault_problems
+    if problems:
+        raise ScenarioError.from_problems(name, problems)
+
+    return Scenario(
+        system=spec.system,
+        model=model,
+        load_spec=spec.load,
+        duration=spec.duration,
+        sample_rate=spec.sample_rate,
+        initial_state=dict(spec.initial_state),
+        fault=fault,
+        noise=spec.sensors.noise,
+        sensor_seed=spec.sensors.seed,
+        source=name,
+        spec=spec,
+    )
+
+
+def _fault(model: SystemModel, fields: FaultFields) -> tuple[FaultSpec | None, list[str]]:
+    try:
+        model.check_name(fields.parameter, "fault.parameter")
+    except ParameterError as exc:
+        return None, [str(exc)]
+    problems = []
+    for i, (_, value) in enumerate(fields.profile):
+        try:
+            model.check_value(fields.parameter, value, f"fault.profile[{i}]")
+        except ParameterError as exc:
+            problems.append(str(exc))
+    try:
+        profile = PiecewiseLinearProfile(tuple(t for t, _ in fields.profile), tuple(v for _, v in fields.profile))
+    except ProfileError as exc:
+        where = "fault.profile" if exc.index is None else f"fault.profile[{exc.index}]"
+        return None, [*problems, f"{where}: {exc.reason}"]
+    return (None if problems else FaultSpec(fields.parameter, profile)), problems
