@@ -82,6 +82,11 @@ class _Assigner:
                 f"causal conflict at {kind.value}-junction {name!r}: its {rule} is imposed by "
                 f"more than one of {culprits}"
             )
+        if not strong and not free:
+            rule = "effort" if kind is Kind.ZERO else "flow"
+            raise BondGraphError(
+                f"{kind.value}-junction {name!r} has no bond that imposes its {rule}: the graph is under-determined"
+            )
         if len(strong) == 1:
             for i in free:
                 self.fix(i, name if kind is Kind.ZERO else self.bonds[i].other(name), f"junction {name!r}")

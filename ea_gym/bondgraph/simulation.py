@@ -19,6 +19,7 @@ from numpy.polynomial import chebyshev
 from scipy.linalg import expm
 
 from ea_gym.bondgraph.equations import StateSpaceModel
+from ea_gym.threads import single_threaded_blas
 
 #: Polynomial pieces per sample interval of the input: u(s) = sum_j w_j s^j / j!, j = 0..3.
 HOLD_ORDER = 4
@@ -170,13 +171,14 @@ def matrices_along(
         rtol: accuracy asked of the parameter interpolant, relative to each matrix's largest entry.
     """
     both = np.concatenate([theta_mid, theta_samples])
-    varying = np.flatnonzero(np.ptp(both, axis=0) > 0)
+    columns = np.ascontiguousarray(both.T)  # reductions along rows of a transposed copy are ~30x faster
+    varying = np.flatnonzero(columns.max(axis=1) > columns.min(axis=1))
     if len(varying) == 0:
         Phi, Gamma, Cy, Dy = _evaluate(model, both[:1], h)
         return ModelMatrices(Discretization(Phi[None], Gamma[None]), Cy[None], Dy[None])
     if len(varying) == 1:
         j = int(varying[0])
-        lo, hi = float(both[:, j].min()), float(both[:, j].max())
+        lo, hi = float(columns[j].min()), float(columns[j].max())
         for degree in (4, 8, 16, 32, 64):
             interpolant = _ChebyshevInterpolant(model, both[0], j, lo, hi, h, degree)
             if interpolant.error <= rtol:
@@ -209,7 +211,8 @@ def simulate_linear(
     Returns:
         states (T + 1, nx) and bond efforts and flows (T + 1, 2 n_bonds).
     """
-    mats = matrices_along(model, theta_mid, theta_samples, sample_period)
-    w = hermite_coefficients(u, du, sample_period)
-    x = propagate(mats.step, w[None], np.asarray(x0, dtype=float)[None])
-    return x[0], mats.bond_values(x, u[None])[0]
+    with single_threaded_blas():
+        mats = matrices_along(model, theta_mid, theta_samples, sample_period)
+        w = hermite_coefficients(u, du, sample_period)
+        x = propagate(mats.step, w[None], np.asarray(x0, dtype=float)[None])
+        return x[0], mats.bond_values(x, u[None])[0]

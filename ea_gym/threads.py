@@ -1,0 +1,24 @@
+"""BLAS threading for the many small matrix products of the simulation.
+
+Batches of tiny matrices (2x2 to 10x10) run slower on several BLAS threads than on one, and far slower
+when another process holds a core (threads wait on each other). The hot paths run under
+``single_threaded_blas()``; torch keeps its own threads.
+"""
+
+from __future__ import annotations
+
+from contextlib import AbstractContextManager
+from functools import cache
+
+import scipy.linalg  # noqa: F401 - loads scipy's BLAS so that the controller sees it
+from threadpoolctl import ThreadpoolController
+
+
+@cache
+def _controller() -> ThreadpoolController:
+    return ThreadpoolController()
+
+
+def single_threaded_blas() -> AbstractContextManager:
+    """A context in which numpy's and scipy's BLAS use one thread (about 10 us to enter)."""
+    return _controller().limit(limits=1, user_api="blas")

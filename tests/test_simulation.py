@@ -1,0 +1,257 @@
+"""Simulation of the bond-graph models against closed forms, a reference integrator and invariants."""
+
+import numpy as np
+import pytest
+from scipy import signal
+from scipy.integrate import solve_ivp
+
+from ea_gym import models
+from ea_gym.loads import ConstantLoad, Sine, SinesLoad
+from ea_gym.plant import run_model
+
+M, K, B = 10.0, 100.0, 0.5  # the paper's Table 2: m (kg), k (N/m), b (N s/m)
+SIGMA = B / (2 * M)  # decay rate (1/s)
+WN2 = K / M  # natural angular frequency squared (rad^2/s^2)
+WD = np.sqrt(WN2 - SIGMA**2)  # damped angular frequency (rad/s)
+T_100HZ = np.linspace(0.0, 120.0, 12001)  # 120 s at 100 Hz
+
+
+def max_rel_error(simulated: np.ndarray, exact: np.ndarray) -> float:
+    """Largest absolute error relative to the exact signal's amplitude (its largest magnitude)."""
+    return float(np.abs(simulated - exact).max() / np.abs(exact).max())
+
+
+def drifting_stiffness(duration: float = 200.0, k0: float = 100.0, k1: float = 86.0):
+    """k(t) falling linearly from k0 to k1 over ``duration`` s; m and b nominal (parameter order m, k, b)."""
+
+    def k_of(t):
+        return k0 + (k1 - k0) * np.asarray(t) / duration
+
+    def parameters(t):
+        t = np.asarray(t, dtype=float)
+        return np.stack([np.full_like(t, M), k_of(t), np.full_like(t, B)], axis=-1)
+
+    return k_of, parameters
+
+
+# --------------------------------------------------------------------------------------------------
+# closed-form responses of the spring-mass-damper
+
+
+def test_step_response_matches_the_underdamped_closed_form():
+    # m x'' + b x' + k x = F from rest: x = F/k [1 - e^{-s t} (cos wd t + (s/wd) sin wd t)],
+    # v = x' = (F/k) (wn^2/wd) e^{-s t} sin wd t, with s = b/2m, wn^2 = k/m, wd^2 = wn^2 - s^2.
+    model = models.spring_mass_damper()
+    assert model.state_names == ("m", "k")
+    F, t = 10.0, T_100HZ
+    traj = run_model(model, t, ConstantLoad(F))
+    x = F / K * (1 - np.exp(-SIGMA * t) * (np.cos(WD * t) + SIGMA / WD * np.sin(WD * t)))
+    v = F / K * WN2 / WD * np.exp(-SIGMA * t) * np.sin(WD * t)
+    position, velocity = traj.states[:, 1], traj.states[:, 0] / M
+    assert position[0] == 0.0 and velocity[0] == 0.0
+    for simulated, exact in ((position, x), (velocity, v)):
+        error = max_rel_error(simulated, exact)
+        assert error <= 1e-6
+        # the discretization is exact for a constant input: only round-off remains (measured ~3e-14)
+        assert error <= 1e-9
+    # the trajectory's own views agree with the states
+    np.testing.assert_allclose(traj.flow["m"], velocity, rtol=1e-13, atol=1e-16)
+    np.testing.assert_array_equal(traj.t, t)
+
+
+def _sine_closed_form(t, offset=10.0, amplitude=5.0, frequency=0.3):
+    """x(t), v(t) of m x'' + b x' + k x = offset + amplitude sin(w t) from rest.
+
+    Particular solution: x_p = offset/k + Im(X e^{i w t}) with X = amplitude / (k - m w^2 + i b w).
+    Homogeneous: e^{-s t} (c1 cos wd t + c2 sin wd t), with x(0) = 0 -> c1 = -x_p(0) and
+    v(0) = 0 -> -s c1 + wd c2 = -x_p'(0).
+    """
+    w = 2 * np.pi * frequency
+    X = amplitude / (K - M * w**2 + 1j * B * w)
+    xp = offset / K + np.imag(X * np.exp(1j * w * t))
+    vp = np.imag(1j * w * X * np.exp(1j * w * t))
+    xp0, vp0 = offset / K + np.imag(X), np.imag(1j * w * X)
+    c1 = -xp0
+    c2 = (-vp0 + SIGMA * c1) / WD
+    decay = np.exp(-SIGMA * t)
+    x = xp + decay * (c1 * np.cos(WD * t) + c2 * np.sin(WD * t))
+    v = vp + decay * ((WD * c2 - SIGMA * c1) * np.cos(WD * t) - (WD * c1 + SIGMA * c2) * np.sin(WD * t))
+    return x, v
+
+
+def test_closed_form_for_the_sine_load_is_self_consistent():
+    # guard the reference itself: zero initial conditions, v = dx/dt and m dv/dt + b v + k x = F(t)
+    t = np.linspace(0.0, 20.0, 200001)
+    x, v = _sine_closed_form(t)
+    assert abs(x[0]) < 1e-15 and abs(v[0]) < 1e-15
+    np.testing.assert_allclose(np.gradient(x, t, edge_order=2), v, rtol=0, atol=1e-6 * np.abs(v).max())
+    force = 10.0 + 5.0 * np.sin(2 * np.pi * 0.3 * t)
+    residual = M * np.gradient(v, t, edge_order=2) + B * v + K * x - force
+    assert np.abs(residual).max() <= 1e-5 * np.abs(force).max()
+
+
+def test_sine_response_matches_the_closed_form():
+    model = models.spring_mass_damper()
+    t = T_100HZ
+    load = SinesLoad(10.0, (Sine(5.0, 0.3),))
+    traj = run_model(model, t, load)
+    x, v = _sine_closed_form(t)
+    for simulated, exact in ((traj.states[:, 1], x), (traj.states[:, 0] / M, v)):
+        error = max_rel_error(simulated, exact)
+        assert error <= 1e-6
+        assert error <= 1e-9  # cubic Hermite hold, error O(h^4): measured ~1e-10
+
+
+def test_zero_order_hold_would_not_be_accurate_enough():
+    # The same model discretized with a zero-order hold of the sampled load (the usual shortcut)
+    # misses the closed form by far more than the 1e-6 the engine meets: the higher-order hold matters.
+    t = T_100HZ
+    h = t[1] - t[0]
+    load = SinesLoad(10.0, (Sine(5.0, 0.3),))
+    A = np.array([[-B / M, -K], [1 / M, 0.0]])
+    Bm = np.array([[1.0], [0.0]])
+    Ad, Bd, *_ = signal.cont2discrete((A, Bm, np.eye(2), np.zeros((2, 1))), h, method="zoh")
+    u = load.value(t)
+    states = np.zeros((len(t), 2))
+    for i in range(len(t) - 1):
+        states[i + 1] = Ad @ states[i] + Bd[:, 0] * u[i]
+    x, _ = _sine_closed_form(t)
+    assert max_rel_error(states[:, 1], x) > 1e-6
+    # while the engine's matrices are the same A, B
+    mats = models.spring_mass_damper().state_space.matrices(np.array([M, K, B]))
+    np.testing.assert_allclose(mats.A, A, rtol=1e-15)
+    np.testing.assert_allclose(mats.B, Bm, rtol=1e-15)
+
+
+def test_drifting_stiffness_matches_a_tight_reference_integrator():
+    model = models.spring_mass_damper()
+    duration = 200.0
+    k_of, parameters = drifting_stiffness(duration)
+    t = np.linspace(0.0, duration, 20001)
+    load = SinesLoad(10.0, (Sine(5.0, 0.3),))
+    traj = run_model(model, t, load, parameters)
+    np.testing.assert_allclose(traj.parameters[:, 1], k_of(t), rtol=1e-15)
+
+    def rhs(time, y):  # y = (p, q); the stiffness varies continuously
+        p, q = y
+        return [load.value(np.array(time)) - k_of(time) * q - B / M * p, p / M]
+
+    ref = solve_ivp(rhs, (0.0, duration), [0.0, 0.0], method="DOP853", rtol=1e-12, atol=1e-12, t_eval=t)
+    assert ref.success
+    for column in range(2):
+        assert max_rel_error(traj.states[:, column], ref.y[column]) <= 1e-6
+    # a constant stiffness would be visibly wrong: the drift matters at this tolerance
+    constant = run_model(model, t, load)
+    assert max_rel_error(constant.states[:, 1], ref.y[1]) > 1e-3
+
+
+# --------------------------------------------------------------------------------------------------
+# chunking
+
+
+@pytest.mark.parametrize("drift", [False, True], ids=["nominal", "drifting_k"])
+def test_chunked_simulation_equals_one_run(drift):
+    # a dyadic sample period makes both chunks' time grids bitwise equal to the whole run's
+    h = 2.0**-7
+    t = np.arange(120 * 128 + 1) * h
+    cut = 60 * 128
+    load = SinesLoad(10.0, (Sine(5.0, 0.3), Sine(2.0, 1.7, 0.4)))
+    parameters = drifting_stiffness()[1] if drift else None
+    model = models.spring_mass_damper()
+    whole = run_model(model, t, load, parameters)
+    first = run_model(model, t[: cut + 1], load, parameters)
+    second = run_model(model, t[cut:], load, parameters, initial_state=first.states[-1])
+    states = np.concatenate([first.states, second.states[1:]])
+    bonds = np.concatenate([first.bonds, second.bonds[1:]])
+    scale = np.abs(whole.states).max(axis=0)
+    assert np.all(np.abs(states - whole.states) <= 1e-12 * scale)
+    assert np.all(np.abs(bonds - whole.bonds) <= 1e-12 * np.abs(whole.bonds).max())
+    assert np.all(np.abs(first.bonds[-1] - second.bonds[0]) <= 1e-12 * np.abs(whole.bonds).max())
+    np.testing.assert_array_equal(np.concatenate([first.t, second.t[1:]]), whole.t)
+
+
+# --------------------------------------------------------------------------------------------------
+# power balance and constitutive laws at every sample
+
+
+def junction_power_residuals(model, bonds: np.ndarray):
+    """Net power into every junction, TF and GY at every sample, and the largest bond power there."""
+    graph = model.graph
+    n = len(graph.bonds)
+    power = bonds[:, :n] * bonds[:, n:]
+    largest = np.abs(power).max(axis=1)
+    out = {}
+    for name, element in graph.elements.items():
+        if element.kind.is_junction:
+            ports = graph.bonds_of(name)
+        elif element.kind.is_two_port:
+            ports = list(graph.two_port_bonds(name))
+        else:
+            continue
+        signs = np.array([1.0 if graph.bonds[i].head == name else -1.0 for i in ports])
+        out[name] = power[:, ports] @ signs
+    return out, largest
+
+
+SINES = SinesLoad(5.0, (Sine(3.0, 0.4), Sine(1.5, 2.3, 1.1), Sine(0.5, 7.0, -0.3)))
+
+
+def _dc_motor_drifting_k(t):
+    """The torque constant K falling from 0.1 to 0.08 N m/A over 20 s, the others nominal."""
+    t = np.asarray(t, dtype=float)
+    model = models.dc_motor()
+    theta = np.repeat(model.parameter_vector()[None], len(t), axis=0)
+    theta[:, model.parameter_names.index("K")] = 0.1 - 0.02 * t / 20.0
+    return theta
+
+
+@pytest.mark.parametrize(
+    ("factory", "parameters"),
+    [
+        (models.spring_mass_damper, None),
+        (models.rlc_circuit, None),
+        (models.dc_motor, None),
+        (models.spring_mass_damper, drifting_stiffness(20.0)[1]),
+        (models.dc_motor, _dc_motor_drifting_k),
+    ],
+    ids=["spring_mass_damper", "rlc_circuit", "dc_motor", "spring_mass_damper_drifting_k", "dc_motor_drifting_K"],
+)
+def test_power_balances_at_every_junction_at_every_sample(factory, parameters):
+    model = factory()
+    t = np.linspace(0.0, 20.0, 2001)
+    traj = run_model(model, t, SINES, parameters)
+    residuals, largest = junction_power_residuals(model, traj.bonds)
+    assert largest[1:].min() > 0  # the system moves after the first sample
+    for name, net in residuals.items():
+        assert np.all(np.abs(net) <= 1e-9 * largest), (name, np.abs(net[1:] / largest[1:]).max())
+    # the element powers of the trajectory agree with the bonds, and the source's power is spent
+    # on the R, C and I elements (GY/TF are lossless): sum over the one-port consumers = source power
+    absorbed = sum(traj.power[name] for name in model.rco_elements)
+    source = traj.power[model.load_source]
+    np.testing.assert_allclose(absorbed, source, rtol=0, atol=1e-9 * np.abs(source).max())
+
+
+def test_spring_mass_damper_signals_obey_the_constitutive_laws():
+    model = models.spring_mass_damper()
+    _, parameters = drifting_stiffness(30.0)
+    t = np.linspace(0.0, 30.0, 3001)
+    for params in (None, parameters):
+        traj = run_model(model, t, SINES, params)
+        theta = traj.parameters
+        m, k, b = theta[:, 0], theta[:, 1], theta[:, 2]
+        p, q = traj.states[:, 0], traj.states[:, 1]
+        scale_f = np.abs(traj.flow["m"]).max()
+        scale_e = np.abs(traj.effort["k"]).max()
+        np.testing.assert_allclose(traj.effort["b"], b * traj.flow["b"], rtol=0, atol=1e-12 * scale_e)
+        np.testing.assert_allclose(traj.flow["m"], p / m, rtol=0, atol=1e-12 * scale_f)
+        np.testing.assert_allclose(traj.effort["k"], k * q, rtol=0, atol=1e-12 * scale_e)
+        # one common velocity at the 1-junction; the force balance F = e_m + e_k + e_b
+        np.testing.assert_allclose(traj.flow["k"], traj.flow["m"], rtol=0, atol=1e-12 * scale_f)
+        np.testing.assert_allclose(traj.flow["b"], traj.flow["m"], rtol=0, atol=1e-12 * scale_f)
+        np.testing.assert_allclose(traj.effort["F"], SINES.value(t), rtol=1e-14)
+        np.testing.assert_allclose(
+            traj.effort["m"] + traj.effort["k"] + traj.effort["b"], traj.effort["F"], rtol=0, atol=1e-12 * scale_e
+        )
+        # power is e * f of each element
+        for name in ("m", "k", "b", "F"):
+            np.testing.assert_array_equal(traj.power[name], traj.effort[name] * traj.flow[name])
