@@ -35,6 +35,8 @@ class SystemModel:
         units: SI unit of every parameter and of the load.
         load_source: the source element driven by a scenario's load.
         nominal_load: the load's nominal value (N, V, ...), e.g. Table 2's F = 10 N.
+        excitation_bandwidth: bandwidth (Hz) of the random loads that excite the system's dynamics
+            (above its resonances) when fault databases and environments draw loads.
         description: one line for people.
     """
 
@@ -45,6 +47,7 @@ class SystemModel:
     units: Mapping[str, str]
     load_source: str
     nominal_load: float
+    excitation_bandwidth: float
     description: str = ""
 
     def __post_init__(self) -> None:
@@ -143,6 +146,7 @@ def spring_mass_damper() -> SystemModel:
         units={"m": "kg", "k": "N/m", "b": "N s/m", "F": "N"},
         load_source="F",
         nominal_load=10.0,
+        excitation_bandwidth=2.0,
         description="Spring-mass-damper of the paper's Fig 6-7 and Table 2",
     )
 
@@ -162,6 +166,7 @@ def rlc_circuit() -> SystemModel:
         units={"R1": "ohm", "L1": "H", "C1": "F", "R2": "ohm", "U": "V"},
         load_source="U",
         nominal_load=10.0,
+        excitation_bandwidth=5.0,
         description="RLC circuit of the paper's Fig 3-4",
     )
 
@@ -181,6 +186,7 @@ def dc_motor() -> SystemModel:
         units={"Ra": "ohm", "La": "H", "K": "N m/A", "J": "kg m^2", "bm": "N m s/rad", "V": "V"},
         load_source="V",
         nominal_load=12.0,
+        excitation_bandwidth=10.0,
         description="DC motor (armature Ra, La; torque constant K) driving a damped inertia (J, bm)",
     )
 

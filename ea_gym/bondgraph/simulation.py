@@ -216,3 +216,23 @@ def simulate_linear(
         w = hermite_coefficients(u, du, sample_period)
         x = propagate(mats.step, w[None], np.asarray(x0, dtype=float)[None])
         return x[0], mats.bond_values(x, u[None])[0]
+
+
+def simulate_batch(
+    model: StateSpaceModel, sample_period: float, u: np.ndarray, du: np.ndarray, theta: np.ndarray, x0: np.ndarray
+) -> np.ndarray:
+    """Simulate N systems, each with constant parameters, over T intervals.
+
+    Args:
+        u, du: source values and derivatives at the samples, (N, T + 1, nu).
+        theta: parameters of each system, (N, P).
+        x0: initial energy variables, (N, nx).
+
+    Returns:
+        states at every sample, (N, T + 1, nx).
+    """
+    with single_threaded_blas():
+        mats = model.matrices(theta)
+        step = discretize(mats.A, mats.B, sample_period)
+        d = Discretization(step.Phi[:, None], step.Gamma[:, None])
+        return propagate(d, hermite_coefficients(u, du, sample_period), x0)

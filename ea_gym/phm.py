@@ -1,0 +1,396 @@
+"""The PHM chain on Energy Activity, online and batched over N systems (paper section 3, Fig 5).
+
+Each ``update`` takes one step of signals (measured, reference, load) for every system and returns its
+health: EA, EAI and residuals of every element, the detection alarm, the class probabilities of the
+isolation network, the estimate of every degradable parameter (each as if it alone were faulty), the
+isolated parameter's estimate and its End of Life and RUL with an interval.
+
+Detection compares, element by element, the EA residual summed over the last ``detector.window``
+seconds with the reference EA over the same span; the threshold is calibrated on fault-free runs at
+the same noise level (``calibrate_thresholds``), and an alarm needs ``persistence`` steps in a row.
+Isolation averages the network's probabilities over the frames seen since the alarm.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import savgol_filter
+
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.database import classes_of, draw_loads
+from ea_gym.diagnosis.features import frame_features
+from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow, add_sensor_noise
+from ea_gym.energy import activity_index, window_samples
+from ea_gym.models import SystemModel
+from ea_gym.prognosis import EAParameterEstimator, EstimatorConfig, ExtrapolationConfig, predict_end_of_life
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Residual detection.
+
+    Attributes:
+        window: span of the EA residual sums compared with the threshold (s).
+        persistence: consecutive steps above threshold that raise the alarm.
+        margin: threshold = margin x the largest statistic seen in fault-free calibration runs.
+        floor: smallest threshold (relative EA residual), for noise-free signals.
+        calibration_runs: fault-free runs simulated for the calibration.
+        calibration_duration: their length (s).
+    """
+
+    window: float = 5.0
+    persistence: int = 3
+    margin: float = 1.25
+    floor: float = 1e-3
+    calibration_runs: int = 8
+    calibration_duration: float = 60.0
+
+
+@dataclass(frozen=True)
+class PHMConfig:
+    """The whole chain's settings.
+
+    Attributes:
+        step: seconds of signal per update (an environment step's window).
+        sample_rate: Hz.
+        noise: sensor noise, fraction of each measured signal's RMS over a step.
+        frame: isolation frame (s); must equal the frame the classifier was trained on.
+    """
+
+    step: float = 1.0
+    sample_rate: float = 100.0
+    noise: float = 0.0
+    frame: float = 20.0
+    monitor: MonitorConfig = field(default_factory=MonitorConfig)
+    detector: DetectorConfig = field(default_factory=DetectorConfig)
+    estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
+    extrapolation: ExtrapolationConfig = field(default_factory=ExtrapolationConfig)
+
+
+@dataclass(frozen=True)
+class HealthStatus:
+    """The chain's output after one update, one row per system.
+
+    Attributes:
+        t: time since the last reset at the end of the step (s), (N,).
+        ea, ea_reference, residual: EA of every element over the step and its residual (J), (N, E).
+        eai, eai_reference: EAI of every component over the step, (N, C).
+        statistic: relative EA residual of every element over the detection window, (N, E).
+        alarm: a fault has been detected, (N,); detection_time: when (s), NaN before.
+        probabilities: isolation class probabilities, (N, K) ("none" = 1 until a full frame).
+        isolated: class index of the isolated parameter, 0 while none, (N,).
+        estimates: estimate of every degradable parameter, (N, D), each as if it alone were faulty.
+        estimate: the isolated parameter's filtered estimate, NaN while none, (N,); it describes the
+            parameter ``PHMChain.estimate_lag`` seconds before ``t``.
+        eol, eol_low, eol_high: End of Life and interval (s), inf while no trend reaches a limit, (N,).
+    """
+
+    t: np.ndarray
+    ea: np.ndarray
+    ea_reference: np.ndarray
+    residual: np.ndarray
+    eai: np.ndarray
+    eai_reference: np.ndarray
+    statistic: np.ndarray
+    alarm: np.ndarray
+    detection_time: np.ndarray
+    probabilities: np.ndarray
+    isolated: np.ndarray
+    estimates: np.ndarray
+    estimate: np.ndarray
+    eol: np.ndarray
+    eol_low: np.ndarray
+    eol_high: np.ndarray
+
+    @property
+    def rul(self) -> np.ndarray:
+        """Point RUL and its interval (s), (N, 3); inf where no End of Life is predicted."""
+        return np.stack([self.eol, self.eol_low, self.eol_high], axis=1) - self.t[:, None]
+
+
+def _push(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
+    """Append ``new`` along the last axis and drop as many of the oldest entries."""
+    k = new.shape[-1]
+    return np.concatenate([buffer[..., k:], new], axis=-1)
+
+
+class PHMChain:
+    """The online chain for N systems of one model.
+
+    Args:
+        model: the monitored system (nominal values, safe limits).
+        classifier: the isolation network (its classes are "none" then the degradable parameters).
+        thresholds: detection threshold of every element's relative EA residual, (E,).
+        config: chain settings.
+        n_systems: N.
+    """
+
+    def __init__(self, model: SystemModel, classifier: FaultClassifier, thresholds: np.ndarray, config: PHMConfig, n_systems: int = 1):
+        self.model = model
+        self.config = config
+        self.n = n_systems
+        self.h = 1.0 / config.sample_rate
+        self.classifier = classifier
+        self.classes = classes_of(model)
+        if tuple(classifier.classes) != self.classes:
+            raise ValueError(f"classifier classes {classifier.classes} do not match the model's {self.classes}")
+        self.monitor = Monitor(model, self.h, config.monitor, n_systems)
+        self.estimator = EAParameterEstimator(self.monitor, config.estimator)
+        self.thresholds = np.asarray(thresholds, dtype=float)
+        self.degradable = self.classes[1:]
+        self._degradable_index = np.array([model.parameter_names.index(p) for p in self.degradable])
+        self.step_samples = window_samples(config.step, self.h)
+        self.frame_steps = window_samples(config.frame, config.step)
+        self.detect_subs = window_samples(config.detector.window, config.monitor.sub_window)
+        self.estimate_steps = window_samples(config.estimator.window, config.step)
+        self.median_length = config.estimator.median
+        # a filtered estimate describes the middle of its inversion window, and a causal median of
+        # successive windows the middle of their span
+        self.estimate_lag = 0.5 * config.estimator.window + 0.5 * (self.median_length - 1) * config.step
+        self.history_length = int(round(config.extrapolation.span / config.step)) + 1
+        self.reset()
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems, or for those where the boolean mask is true."""
+        n, E, C, nx = self.n, len(self.monitor.elements), len(self.monitor.components), len(self.model.state_names)
+        D = len(self.degradable)
+        subs = self.frame_steps * (self.step_samples // self.monitor.n_sub)
+        balances = self.frame_steps * (self.step_samples // (self.monitor.n_sub * self.monitor.n_balance))
+        # raw signals for the inversion: its window, the candidates' smoothing context before it, and
+        # as much again so that the state it starts from is smoothed with samples on both sides
+        signal_samples = self.estimate_steps * self.step_samples + 2 * self.monitor.config.smoothing + 1
+        fresh = {
+            "time": np.zeros(n),
+            "steps": np.zeros(n, dtype=int),
+            "ea": np.zeros((n, E, subs)),
+            "ea_reference": np.zeros((n, E, subs)),
+            "gram": np.zeros((n, C, C, balances)),
+            "cross": np.zeros((n, C, balances)),
+            "noise": np.zeros((n, 2, nx, self.frame_steps)),
+            "signals": np.zeros((n, nx, signal_samples)),
+            "load": np.zeros((n, 2, signal_samples)),
+            "above": np.zeros(n, dtype=int),
+            "alarm": np.zeros(n, dtype=bool),
+            "detection_time": np.full(n, np.nan),
+            "probability_sum": np.zeros((n, len(self.classes))),
+            "raw": np.full((n, D, self.median_length), np.nan),
+            "estimates": np.tile(self.model.parameter_vector()[self._degradable_index], (n, 1)),
+            "history_t": np.full((n, self.history_length), np.nan),
+            "history": np.full((n, D, self.history_length), np.nan),
+            "isolated": np.zeros(n, dtype=int),
+        }
+        if systems is None:
+            self.state = fresh
+            self.monitor.reset()
+            return
+        for key, value in fresh.items():
+            self.state[key][systems] = value[systems]
+        self.monitor.reset(systems)
+
+    def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> HealthStatus:
+        """Process one step.
+
+        Args:
+            measured: noisy measured signals (flows of I, displacements of C), (N, nx, L + 1).
+            reference: the reference model's signals, same shape.
+            load, load_rate: the source's value and time derivative, (N, L + 1).
+        """
+        s = self.state
+        window: MonitorWindow = self.monitor.update(measured, reference, load)
+        s["time"] = s["time"] + self.config.step
+        s["steps"] = s["steps"] + 1
+        for key, value in (("ea", window.ea), ("ea_reference", window.ea_reference)):
+            s[key] = _push(s[key], value)
+        s["gram"] = _push(s["gram"], np.moveaxis(window.gram, 1, -1))
+        s["cross"] = _push(s["cross"], np.moveaxis(window.cross, 1, -1))
+        s["noise"] = _push(s["noise"], window.noise[..., None])
+        s["signals"] = _push(s["signals"], measured[..., 1:])
+        s["load"] = _push(s["load"], np.stack([load, load_rate], axis=1)[..., 1:])
+
+        ea, ea_ref = window.ea.sum(-1), window.ea_reference.sum(-1)
+        components = self.monitor._component_index
+        eai = np.stack(list(activity_index(dict(enumerate(ea[:, components].T))).values()), axis=1)
+        eai_ref = np.stack(list(activity_index(dict(enumerate(ea_ref[:, components].T))).values()), axis=1)
+
+        statistic = self._statistic()
+        above = np.any(np.abs(statistic) > self.thresholds, axis=1)
+        s["above"] = np.where(above, s["above"] + 1, 0)
+        new_alarm = ~s["alarm"] & (s["above"] >= self.config.detector.persistence)
+        s["detection_time"] = np.where(new_alarm, s["time"], s["detection_time"])
+        s["alarm"] = s["alarm"] | new_alarm
+
+        probabilities = self._isolate()
+        estimates = self._estimate()
+        estimate, eol = self._prognose(estimates)
+        return HealthStatus(
+            t=s["time"].copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, eai=eai, eai_reference=eai_ref,
+            statistic=statistic, alarm=s["alarm"].copy(), detection_time=s["detection_time"].copy(),
+            probabilities=probabilities, isolated=s["isolated"].copy(), estimates=estimates, estimate=estimate,
+            eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2],
+        )
+
+    def _statistic(self) -> np.ndarray:
+        """Relative EA residual of every element over the detection window, (N, E)."""
+        s = self.state
+        ea = s["ea"][..., -self.detect_subs :].sum(-1)
+        ref = s["ea_reference"][..., -self.detect_subs :].sum(-1)
+        seen = np.minimum(s["steps"] * (self.step_samples // self.monitor.n_sub), self.detect_subs)
+        statistic = (ea - ref) / np.maximum(ref, 1e-300)
+        return np.where((seen >= self.detect_subs)[:, None], statistic, 0.0)
+
+    def _isolate(self) -> np.ndarray:
+        s = self.state
+        probabilities = np.zeros((self.n, len(self.classes)))
+        probabilities[:, 0] = 1.0
+        full = s["steps"] >= self.frame_steps
+        if np.any(full):
+            noise = s["noise"][full].sum(-1)
+            frame = self.monitor.frame_of(
+                s["ea"][full], s["ea_reference"][full], s["gram"][full].sum(-1), s["cross"][full].sum(-1), noise
+            )
+            features = frame_features(frame, self.classifier.variant, self.model.excitation_bandwidth)
+            probabilities[full] = self.classifier.predict_proba(features)
+        counted = full & s["alarm"]
+        s["probability_sum"][counted] += probabilities[counted]
+        fault_scores = s["probability_sum"][:, 1:]
+        isolated = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
+        changed = isolated != s["isolated"]
+        s["isolated"] = isolated
+        return probabilities
+
+    def _estimate(self) -> np.ndarray:
+        """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).
+
+        Before isolation every degradable parameter is estimated; afterwards only the isolated one,
+        and the others keep their last value.
+        """
+        s = self.state
+        D = len(self.degradable)
+        ready = s["steps"] >= self.estimate_steps
+        if not np.any(ready):
+            return s["estimates"].copy()
+        rows, columns = [], []
+        for i in np.flatnonzero(ready):
+            chosen = [s["isolated"][i] - 1] if s["isolated"][i] > 0 else range(D)
+            rows += [i] * len(chosen)
+            columns += list(chosen)
+        rows, columns = np.array(rows), np.array(columns)
+        span = self.estimate_steps * (self.step_samples // self.monitor.n_sub)
+        ea = s["ea"][rows][:, self.monitor._component_index, -span:].sum(-1)
+        c = self.monitor.config.smoothing
+        smooth = savgol_filter(s["signals"][rows][..., : 2 * c + 1], c, self.monitor.config.polyorder, axis=-1)
+        start = smooth[..., c]
+        load = s["load"][rows][..., c:]
+        values = self.estimator.estimate(self._degradable_index[columns], start, load[:, 0], load[:, 1], ea)
+        raw = s["raw"]
+        raw[rows, columns] = np.concatenate([raw[rows, columns, 1:], values[:, None]], axis=-1)
+        s["estimates"][rows, columns] = np.nanmedian(raw[rows, columns], axis=-1)
+        fresh = np.full((self.n, D), np.nan)
+        fresh[rows, columns] = s["estimates"][rows, columns]
+        s["history"] = _push(s["history"], fresh[..., None])
+        s["history_t"] = _push(s["history_t"], (s["time"] - self.estimate_lag)[:, None])
+        return s["estimates"].copy()
+
+    def _prognose(self, estimates: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        s = self.state
+        estimate = np.full(self.n, np.nan)
+        eol = np.full((self.n, 3), math.inf)
+        isolated = s["isolated"] > 0
+        if not np.any(isolated):
+            return estimate, eol
+        rows = np.flatnonzero(isolated)
+        estimate[rows] = estimates[rows, s["isolated"][rows] - 1]
+        for i in rows:
+            d = s["isolated"][i] - 1
+            history = s["history"][i, d]
+            valid = np.isfinite(history)
+            prediction = predict_end_of_life(
+                s["history_t"][i, valid], history[valid], self.model.safe_limits[self.degradable[d]],
+                float(s["time"][i]), self.config.extrapolation,
+            )
+            if prediction is not None:
+                eol[i] = (prediction.eol, prediction.eol_low, prediction.eol_high)
+        return estimate, eol
+
+
+def measure(monitor: Monitor, parameters: np.ndarray, states: np.ndarray, noise: float, rng: np.random.Generator) -> np.ndarray:
+    """Sensor signals (N, nx, T) from true energy variables (N, T, nx) under true ``parameters`` (N, P) or (N, T, P)."""
+    matrix = monitor.measurement_matrix(parameters)
+    if matrix.ndim == 3:
+        clean = np.einsum("nij,ntj->nit", matrix, states)
+    else:
+        clean = np.einsum("ntij,ntj->nit", matrix, states)
+    return add_sensor_noise(clean, noise, rng)
+
+
+def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> np.ndarray:
+    """Detection thresholds from fault-free runs under random loads at ``config.noise``, (E,)."""
+    from ea_gym.bondgraph.simulation import simulate_batch
+
+    d = config.detector
+    h = 1.0 / config.sample_rate
+    runs = d.calibration_runs
+    loads = draw_loads(model, runs, rng)
+    t = np.arange(int(round(d.calibration_duration * config.sample_rate)) + 1) * h
+    u = np.stack([load.value(t) for load in loads])
+    du = np.stack([load.derivative(t) for load in loads])
+    nominal = np.repeat(model.parameter_vector()[None], runs, 0)
+    states = simulate_batch(model.state_space, h, u[..., None], du[..., None], nominal, np.zeros((runs, len(model.state_names))))
+    monitor = Monitor(model, h, config.monitor, runs)
+    clean = measure(monitor, nominal, states, 0.0, rng)
+    step = window_samples(config.step, h)
+    subs = window_samples(config.detector.window, config.monitor.sub_window)
+    ea, ref = [], []
+    for start in range(0, len(t) - 1, step):
+        part = slice(start, start + step + 1)
+        noisy = add_sensor_noise(clean[..., part], config.noise, rng)
+        window = monitor.update(noisy, clean[..., part], u[:, part])
+        ea.append(window.ea)
+        ref.append(window.ea_reference)
+    ea, ref = np.concatenate(ea, -1), np.concatenate(ref, -1)
+    kernel = np.ones(subs)
+    sums = np.apply_along_axis(lambda x: np.convolve(x, kernel, "valid"), -1, ea)
+    ref_sums = np.apply_along_axis(lambda x: np.convolve(x, kernel, "valid"), -1, ref)
+    statistic = np.abs(sums - ref_sums) / np.maximum(ref_sums, 1e-300)
+    return np.maximum(d.margin * statistic.max(axis=(0, 2)), d.floor)
+
+
+@dataclass(frozen=True)
+class ChainRun:
+    """A scenario run through the chain: the statuses of every step and the ground truth."""
+
+    statuses: list[HealthStatus]
+    t: np.ndarray  # end of every step (s)
+    true_parameters: np.ndarray  # at the end of every step, (steps, P)
+    residual_series: np.ndarray  # EA residual of every element per sub-window, (E, n_sub_total)
+
+
+def run_scenario(scenario, chain: PHMChain, rng: np.random.Generator, progress=None) -> ChainRun:
+    """Simulate ``scenario``'s plant and the reference model and feed them step by step through ``chain`` (N = 1)."""
+    from ea_gym.plant import run_model
+
+    model = scenario.model
+    t = scenario.times()
+    load = scenario.make_load()
+    plant = run_model(model, t, load, scenario.parameters_at, scenario.initial_state_vector())
+    reference = run_model(model, t, load, None, scenario.initial_state_vector())
+    nominal = model.parameter_vector()[None]
+    clean = measure(chain.monitor, plant.parameters[None], plant.states[None], 0.0, rng)
+    expected = measure(chain.monitor, nominal, reference.states[None], 0.0, rng)
+    u, du = load.value(t)[None], load.derivative(t)[None]
+    step = chain.step_samples
+    statuses, residuals = [], []
+    chain.reset()
+    starts = range(0, len(t) - step, step)
+    for start in starts if progress is None else progress(starts):
+        part = slice(start, start + step + 1)
+        noisy = add_sensor_noise(clean[..., part], chain.config.noise, rng)
+        status = chain.update(noisy, expected[..., part], u[:, part], du[:, part])
+        statuses.append(status)
+        residuals.append(chain.state["ea"][0, :, -(step // chain.monitor.n_sub):] - chain.state["ea_reference"][0, :, -(step // chain.monitor.n_sub):])
+    ends = np.array([s.t[0] for s in statuses])
+    index = np.round(ends * scenario.sample_rate).astype(int)
+    return ChainRun(statuses=statuses, t=ends, true_parameters=plant.parameters[index], residual_series=np.concatenate(residuals, -1))

@@ -1,0 +1,207 @@
+"""EA-based estimation of the degrading parameter, and End of Life / RUL by extrapolation (paper 3.3).
+
+Estimation inverts Energy Activity window by window. For a window [t0, t1], candidate values phi of
+the isolated parameter are simulated from the measured state at t0 - c under the measured load (c is
+the smoothing context), their signals go through the same denoising and nominal laws as the
+measurements, and the candidate whose components' EA over [t0, t1] matches the measured EA best (in
+relative least squares) is refined on a finer grid. This uses eq 10's ingredients without linearising
+them: dS/dphi is the model's own response to phi, dEA/dS the component's constitutive law. It is
+preferred to integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors
+do not accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the
+paper names as its limitation.
+
+The End of Life is where a polynomial fitted to the recent estimates (degree 1 by default) reaches a
+safe limit; the interval comes from the fit's covariance (the times where the confidence band of the
+trend reaches the limit).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import norm
+
+from ea_gym.bondgraph.simulation import simulate_batch
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.energy import _interval_activity
+from ea_gym.models import SystemModel
+
+
+@dataclass(frozen=True)
+class EstimatorConfig:
+    """Settings of the EA inversion.
+
+    Attributes:
+        window: inversion window t1 - t0 (s).
+        grid: candidates per pass.
+        passes: refinement passes (each narrows the grid to two steps around the best candidate).
+        margin: how far beyond the safe limits the first grid reaches, as a fraction of their span.
+        median: length of the (causal) median filter over successive estimates (paper 4.4).
+    """
+
+    window: float = 3.0
+    grid: int = 25
+    passes: int = 3
+    margin: float = 0.5
+    median: int = 3
+
+
+class EAParameterEstimator:
+    """Estimates one parameter per system from the EA of the components over a window.
+
+    Args:
+        monitor: the monitor whose denoising and nominal laws produced the measured EA.
+        config: inversion settings.
+    """
+
+    def __init__(self, monitor: Monitor, config: EstimatorConfig = EstimatorConfig()):
+        self.monitor = monitor
+        self.model: SystemModel = monitor.model
+        self.config = config
+        self.context = monitor.config.smoothing
+        self._components = np.array([monitor.elements.index(c) for c in monitor.components])
+
+    def candidate_grid(self, parameter: str) -> np.ndarray:
+        lower, upper = self.model.safe_limits[parameter]
+        span = upper - lower
+        low = max(lower - self.config.margin * span, 1e-6 * upper)
+        return np.linspace(low, upper + self.config.margin * span, self.config.grid)
+
+    def _candidate_ea(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """EA of the components over the window for each (system, candidate): (N, G, C)."""
+        n, g = values.shape
+        space = self.model.state_space
+        theta = np.repeat(self.model.parameter_vector()[None, None], n, 0).repeat(g, 1)
+        theta[np.arange(n), :, parameter_index] = values
+        theta = theta.reshape(n * g, -1)
+        to_state = 1.0 / np.diagonal(self.monitor.measurement_matrix(theta), axis1=-2, axis2=-1)
+        x0 = np.repeat(start, g, 0) * to_state
+        uu = np.repeat(u, g, 0)[..., None]
+        states = simulate_batch(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0)
+        signals = np.einsum("nij,ntj->nit", self.monitor.measurement_matrix(theta), states)
+        signals = np.concatenate([signals, uu.transpose(0, 2, 1)], axis=1)
+        power, _ = self.monitor.powers(signals, self.context)
+        ea = _interval_activity(power[:, self._components], self.monitor.h).sum(-1)
+        return ea.reshape(n, g, -1)
+
+    def estimate(
+        self, parameter_index: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, ea: np.ndarray
+    ) -> np.ndarray:
+        """Parameter value per system that best explains the measured EA.
+
+        Args:
+            parameter_index: index into ``model.parameter_names`` of each system's isolated parameter, (N,).
+            start: denoised measured signals (flows of I, displacements of C) at t0 - c, (N, nx).
+            u, du: load and its derivative from t0 - c to t1, (N, c + L + 1).
+            ea: measured EA of each component over [t0, t1] (J), (N, C).
+        """
+        n = len(parameter_index)
+        names = self.model.parameter_names
+        grids = np.stack([self.candidate_grid(names[j]) for j in parameter_index])
+        scale = np.maximum(ea, 1e-300)[:, None, :]
+        for _ in range(self.config.passes):
+            cost = (((self._candidate_ea(parameter_index, grids, start, u, du) - ea[:, None, :]) / scale) ** 2).sum(-1)
+            best = np.argmin(cost, axis=1)
+            step = grids[:, 1] - grids[:, 0]
+            centre = grids[np.arange(n), best]
+            # the next grid spans one step either side of the best candidate, kept positive
+            grids = np.maximum(centre[:, None] + np.linspace(-1.0, 1.0, self.config.grid) * step[:, None], 1e-6 * grids[:, -1:])
+        return centre
+
+
+@dataclass(frozen=True)
+class EndOfLife:
+    """One End-of-Life prediction.
+
+    Attributes:
+        t: prediction time (s).
+        eol: predicted End of Life (s); inf when the trend never reaches a limit.
+        eol_low, eol_high: its interval (s).
+        limit: "lower", "upper" or None.
+    """
+
+    t: float
+    eol: float
+    eol_low: float
+    eol_high: float
+    limit: str | None
+
+    @property
+    def rul(self) -> float:
+        """Remaining useful life (s, eq 2)."""
+        return self.eol - self.t
+
+    @property
+    def rul_interval(self) -> tuple[float, float]:
+        return self.eol_low - self.t, self.eol_high - self.t
+
+
+@dataclass(frozen=True)
+class ExtrapolationConfig:
+    """Settings of the trend extrapolation.
+
+    Attributes:
+        degree: polynomial degree (the paper uses 1).
+        span: the fit uses the estimates of the last ``span`` seconds.
+        min_points: fewer estimates than this give no prediction.
+        confidence: two-sided confidence of the interval (normal quantile of the trend's uncertainty).
+        horizon: predictions further than this ahead are reported as inf (s).
+    """
+
+    degree: int = 1
+    span: float = 20.0
+    min_points: int = 5
+    confidence: float = 0.95
+    horizon: float = 2000.0
+
+
+def _first_crossing(times: np.ndarray, curve: np.ndarray, level: float, below: bool) -> float:
+    """First time at which ``curve`` reaches ``level`` from its side, linearly interpolated; inf if never."""
+    beyond = curve <= level if below else curve >= level
+    hits = np.flatnonzero(beyond)
+    if len(hits) == 0:
+        return math.inf
+    i = hits[0]
+    if i == 0:
+        return float(times[0])
+    t0, t1, c0, c1 = times[i - 1], times[i], curve[i - 1], curve[i]
+    return float(t0 + (level - c0) * (t1 - t0) / (c1 - c0))
+
+
+def predict_end_of_life(
+    times: np.ndarray,
+    estimates: np.ndarray,
+    limits: tuple[float, float],
+    t_now: float,
+    config: ExtrapolationConfig = ExtrapolationConfig(),
+) -> EndOfLife | None:
+    """Extrapolate the trend of ``estimates`` (parameter unit) at ``times`` (s) to the safe ``limits``.
+
+    Returns None when fewer than ``config.min_points`` estimates fall in the fit span.
+    """
+    recent = times >= t_now - config.span
+    t, y = times[recent], estimates[recent]
+    if len(t) < max(config.min_points, config.degree + 2):
+        return None
+    lower, upper = limits
+    if y[-1] <= lower or y[-1] >= upper:
+        return EndOfLife(t_now, t_now, t_now, t_now, "lower" if y[-1] <= lower else "upper")
+    coefficients, covariance = np.polyfit(t - t_now, y, config.degree, cov="unscaled")
+    residual = y - np.polyval(coefficients, t - t_now)
+    dof = max(len(t) - config.degree - 1, 1)
+    covariance = covariance * max(float(residual @ residual) / dof, 1e-300)
+    ahead = np.linspace(0.0, config.horizon, 8001)
+    powers = np.vander(ahead, config.degree + 1)
+    mean = powers @ coefficients
+    spread = norm.ppf(0.5 + config.confidence / 2) * np.sqrt(np.einsum("ti,ij,tj->t", powers, covariance, powers))
+    slope = np.polyval(np.polyder(coefficients), 0.0)
+    limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)
+    eol = _first_crossing(ahead, mean, level, below)
+    earliest = _first_crossing(ahead, mean - spread if below else mean + spread, level, below)
+    latest = _first_crossing(ahead, mean + spread if below else mean - spread, level, below)
+    if math.isinf(eol):
+        limit = None
+    return EndOfLife(t_now, t_now + eol, t_now + earliest, t_now + latest, limit)
+
