@@ -8,6 +8,7 @@ The top level gives the main entry points::
     eai = ea_gym.activity_index({name: ea[name] for name in scenario.model.rco_elements})
 """
 
+import ea_gym.env  # noqa: F401 - registers the Gymnasium environments
 from ea_gym.energy import (
     EnergyActivityAccumulator,
     activity_index,

@@ -58,3 +58,142 @@ class PiecewiseLinearProfile:
     def value(self, t: np.ndarray) -> np.ndarray:
         """The profile at times t (s), elementwise over any shape of t."""
         return np.interp(np.asarray(t, dtype=float), self.times, self.values)
+
+    def trend_end_of_life(self, t: np.ndarray, limits: tuple[float, float]) -> np.ndarray:
+        """Ground-truth End of Life (s) seen from each time t (s): where the current trend meets a limit.
+
+        The line through (t, value(t)) with the slope of the profile's segment containing t (0 before
+        the first and from the last point on; at a breakpoint, the segment that starts there) is
+        extended to the limit it heads for: the lower one if the slope is negative, the upper one if
+        positive. This is what a perfect degree-1 extrapolation of the parameter predicts.
+
+        Args:
+            t: times (s), any shape.
+            limits: (lower, upper) safe limits, in the parameter's unit, lower < upper.
+
+        Returns:
+            End of Life (s), shaped like t: inf where the slope is 0, t itself where value(t) is
+            already at or beyond a limit.
+        """
+        lower, upper = (float(x) for x in limits)
+        if not lower < upper:
+            raise ValueError(f"limits must be (lower, upper) with lower < upper, got {limits!r}")
+        t = np.asarray(t, dtype=float)
+        times = np.asarray(self.times)
+        values = np.asarray(self.values)
+        slopes = np.append(np.diff(values) / np.diff(times), 0.0)  # segment starting at each point
+        index = np.searchsorted(times, t, side="right") - 1  # last point at or before t (-1: before all)
+        slope = np.where(index >= 0, slopes[np.clip(index, 0, None)], 0.0)
+        value = self.value(t)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            eol = np.where(
+                slope < 0, t + (lower - value) / slope, np.where(slope > 0, t + (upper - value) / slope, np.inf)
+            )
+        outside = (value <= lower) | (value >= upper)
+        return np.where(outside, t, eol)
+
+
+WEAR_PROCESSES = ("linear", "gamma", "wiener")
+
+
+@dataclass(frozen=True)
+class WearConfig:
+    """How one component degrades once its fault has arrived.
+
+    Rates are fractions of the distance from the nominal value to the safe limit the wear heads for,
+    per second, so that one setting fits every component.
+
+    Attributes:
+        process: "linear" (constant drift), "gamma" (monotone gamma-process jumps with that mean
+            drift) or "wiener" (drift plus Brownian motion).
+        direction: -1 toward the lower limit, +1 toward the upper, 0 drawn at random per fault.
+        rate: (low, high) range the fault's mean drift rate is drawn from, 1/s.
+        arrival: (low, high) range the fault's arrival time is drawn from, s after the (re)start;
+            equal ends give a fixed onset (the paper's fault starts at 5 s).
+        volatility: gamma and Wiener processes: std of the wear accumulated in 10 s relative to its mean.
+    """
+
+    process: str = "linear"
+    direction: int = 0
+    rate: tuple[float, float] = (0.005, 0.015)
+    arrival: tuple[float, float] = (0.0, 150.0)
+    volatility: float = 0.3
+
+    def __post_init__(self) -> None:
+        if self.process not in WEAR_PROCESSES:
+            raise ValueError(f"wear process must be one of {WEAR_PROCESSES}, got {self.process!r}")
+        if self.direction not in (-1, 0, 1):
+            raise ValueError(f"wear direction must be -1, 0 or 1, got {self.direction!r}")
+        for name in ("rate", "arrival"):
+            low, high = getattr(self, name)
+            if not (math.isfinite(low) and math.isfinite(high) and 0 <= low <= high):
+                raise ValueError(f"wear {name} must be a range (low, high) with 0 <= low <= high, got {(low, high)!r}")
+        if not (math.isfinite(self.volatility) and self.volatility >= 0):
+            raise ValueError(f"wear volatility must be >= 0, got {self.volatility!r}")
+
+
+class Wear:
+    """Degradation of the components of N systems, one fault at a time per system.
+
+    At every (re)start a system draws which of the wearing components will fail, when its fault
+    arrives, its direction and mean rate; from the arrival on the parameter drifts by the process's
+    increments. All randomness comes from the generator passed to ``start`` and ``advance``.
+
+    Args:
+        nominal: nominal values of the wearing components, (D,).
+        limits: their (lower, upper) safe limits, (D, 2).
+        configs: one WearConfig per wearing component.
+    """
+
+    def __init__(self, nominal: np.ndarray, limits: np.ndarray, configs: list[WearConfig]):
+        self.nominal = np.asarray(nominal, dtype=float)
+        self.limits = np.asarray(limits, dtype=float)
+        self.configs = list(configs)
+        self.faulty = np.zeros(0, dtype=int)
+        self.arrival = np.zeros(0)
+        self.velocity = np.zeros(0)  # mean drift of the faulty component, parameter unit per s
+
+    def start(self, n: int, rng: np.random.Generator, clock: np.ndarray, systems: np.ndarray | None = None) -> None:
+        """Draw a new fault for every system (or those in the boolean mask), arriving after ``clock`` (s)."""
+        if systems is None:
+            self.faulty = np.zeros(n, dtype=int)
+            self.arrival = np.zeros(n)
+            self.velocity = np.zeros(n)
+            systems = np.ones(n, dtype=bool)
+        for i in np.flatnonzero(systems):
+            d = int(rng.integers(len(self.configs)))
+            config = self.configs[d]
+            direction = config.direction or (1 if rng.random() < 0.5 else -1)
+            limit = self.limits[d, 1] if direction > 0 else self.limits[d, 0]
+            self.faulty[i] = d
+            self.arrival[i] = clock[i] + rng.uniform(*config.arrival)
+            self.velocity[i] = rng.uniform(*config.rate) * (limit - self.nominal[d])
+
+    def advance(self, values: np.ndarray, clock: np.ndarray, dt: float, rng: np.random.Generator) -> np.ndarray:
+        """Wear the faulty components over [clock, clock + dt]; ``values`` (N, D) in parameter units."""
+        out = values.copy()
+        active = np.clip(clock + dt - np.maximum(self.arrival, clock), 0.0, dt)  # seconds of wear in the step
+        for i in np.flatnonzero(active > 0):
+            d = self.faulty[i]
+            config, mean = self.configs[d], self.velocity[i] * active[i]
+            if config.process == "linear" or mean == 0:
+                increment = mean
+            elif config.process == "gamma":
+                # shape and scale from mean m and variance (v m)^2 (active / 10 s): the std over 10 s is v times the mean
+                variance = (config.volatility * abs(self.velocity[i]) * 10.0) ** 2 * active[i] / 10.0
+                scale = variance / abs(mean)
+                increment = np.sign(mean) * rng.gamma(abs(mean) / scale, scale) if scale > 0 else mean
+            else:
+                sigma = config.volatility * abs(self.velocity[i]) * 10.0 / math.sqrt(10.0)
+                increment = mean + sigma * math.sqrt(active[i]) * rng.standard_normal()
+            out[i, d] += increment
+        return out
+
+    def true_rul(self, values: np.ndarray, clock: np.ndarray) -> np.ndarray:
+        """Time (s) until the faulty component's mean trend reaches its limit; inf before the fault arrives."""
+        d = self.faulty
+        current = values[np.arange(len(d)), d]
+        limit = np.where(self.velocity > 0, self.limits[d, 1], self.limits[d, 0])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            rul = np.where(self.velocity != 0, (limit - current) / self.velocity, np.inf)
+        return np.where(clock >= self.arrival, np.maximum(rul, 0.0), np.inf)

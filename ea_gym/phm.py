@@ -17,7 +17,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of, draw_loads
@@ -55,12 +54,15 @@ class PHMConfig:
 
     Attributes:
         step: seconds of signal per update (an environment step's window).
+        step_time: seconds of (degradation) time an update stands for, the clock of the prognosis;
+            None: equal to ``step`` (continuous operation).
         sample_rate: Hz.
         noise: sensor noise, fraction of each measured signal's RMS over a step.
         frame: isolation frame (s); must equal the frame the classifier was trained on.
     """
 
     step: float = 1.0
+    step_time: float | None = None
     sample_rate: float = 100.0
     noise: float = 0.0
     frame: float = 20.0
@@ -147,10 +149,11 @@ class PHMChain:
         self.detect_subs = window_samples(config.detector.window, config.monitor.sub_window)
         self.estimate_steps = window_samples(config.estimator.window, config.step)
         self.median_length = config.estimator.median
+        self.step_time = config.step if config.step_time is None else config.step_time
         # a filtered estimate describes the middle of its inversion window, and a causal median of
         # successive windows the middle of their span
-        self.estimate_lag = 0.5 * config.estimator.window + 0.5 * (self.median_length - 1) * config.step
-        self.history_length = int(round(config.extrapolation.span / config.step)) + 1
+        self.estimate_lag = 0.5 * (self.estimate_steps + self.median_length - 1) * self.step_time
+        self.history_length = int(round(config.extrapolation.span / self.step_time)) + 1
         self.reset()
 
     def reset(self, systems: np.ndarray | None = None) -> None:
@@ -200,7 +203,7 @@ class PHMChain:
         """
         s = self.state
         window: MonitorWindow = self.monitor.update(measured, reference, load)
-        s["time"] = s["time"] + self.config.step
+        s["time"] = s["time"] + self.step_time
         s["steps"] = s["steps"] + 1
         for key, value in (("ea", window.ea), ("ea_reference", window.ea_reference)):
             s[key] = _push(s[key], value)
@@ -264,12 +267,13 @@ class PHMChain:
     def _estimate(self) -> np.ndarray:
         """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).
 
-        Before isolation every degradable parameter is estimated; afterwards only the isolated one,
-        and the others keep their last value.
+        From the alarm until isolation every degradable parameter is estimated; afterwards only the
+        isolated one, and the others keep their last value.
         """
         s = self.state
         D = len(self.degradable)
-        ready = s["steps"] >= self.estimate_steps
+        # nothing to estimate before an alarm: the chain then believes the nominal values
+        ready = (s["steps"] >= self.estimate_steps) & s["alarm"]
         if not np.any(ready):
             return s["estimates"].copy()
         rows, columns = [], []
@@ -281,8 +285,7 @@ class PHMChain:
         span = self.estimate_steps * (self.step_samples // self.monitor.n_sub)
         ea = s["ea"][rows][:, self.monitor._component_index, -span:].sum(-1)
         c = self.monitor.config.smoothing
-        smooth = savgol_filter(s["signals"][rows][..., : 2 * c + 1], c, self.monitor.config.polyorder, axis=-1)
-        start = smooth[..., c]
+        start = self.monitor.filter(s["signals"][rows][..., : 2 * c + 1])[..., c]
         load = s["load"][rows][..., c:]
         values = self.estimator.estimate(self._degradable_index[columns], start, load[:, 0], load[:, 1], ea)
         raw = s["raw"]

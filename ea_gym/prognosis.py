@@ -42,7 +42,7 @@ class EstimatorConfig:
     """
 
     window: float = 3.0
-    grid: int = 25
+    grid: int = 15
     passes: int = 3
     margin: float = 0.5
     median: int = 3

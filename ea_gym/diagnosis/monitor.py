@@ -21,10 +21,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import savgol_filter
 
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import Frame
+from ea_gym.diagnosis.smoothing import SavitzkyGolay
 from ea_gym.energy import _interval_activity, _sum_windows, window_samples
 from ea_gym.models import SystemModel
 
@@ -90,8 +90,7 @@ class Monitor:
     """
 
     def __init__(self, model: SystemModel, sample_period: float, config: MonitorConfig = MonitorConfig(), n_systems: int = 1):
-        if config.smoothing % 2 == 0 or config.smoothing <= config.polyorder:
-            raise ValueError(f"smoothing must be odd and above polyorder, got {config.smoothing}")
+        self.filter = SavitzkyGolay(config.smoothing, config.polyorder, sample_period)
         self.model = model
         self.h = sample_period
         self.config = config
@@ -157,8 +156,8 @@ class Monitor:
         through the same linear filter as the measurements, so the filtered signals still obey the
         model's equations and the nominal energy balance holds exactly in a fault-free run.
         """
-        smooth = savgol_filter(signals, self.config.smoothing, self.config.polyorder, axis=-1)[..., start:]
-        slope = savgol_filter(signals, self.config.smoothing, self.config.polyorder, deriv=1, delta=self.h, axis=-1)[..., start:]
+        smooth = self.filter(signals)[..., start:]
+        slope = self.filter(signals, deriv=1)[..., start:]
         u = smooth[..., -1, :]
         states = smooth[..., :-1, :] * self._to_state[:, None]
         bonds = np.einsum("bs,...st->...bt", self._Cy, states) + self._Dy[:, 0][:, None] * u[..., None, :]

@@ -1,0 +1,13 @@
+"""Gymnasium maintenance environments, registered on ``import ea_gym``."""
+
+from gymnasium.envs.registration import register, registry
+
+from ea_gym.env.costs import CostModel
+
+ENV_IDS = ("ea_gym/SpringMassDamper-v0", "ea_gym/BondGraphMaintenance-v0")
+
+if ENV_IDS[0] not in registry:
+    register(id=ENV_IDS[0], entry_point="ea_gym.env.maintenance:SpringMassDamperEnv")
+    register(id=ENV_IDS[1], entry_point="ea_gym.env.maintenance:BondGraphMaintenanceEnv")
+
+__all__ = ["ENV_IDS", "CostModel"]

@@ -1,0 +1,220 @@
+"""Maintenance of a degrading machine with the Energy-Activity PHM chain online."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from ea_gym.degradation import WearConfig
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.env.core import OBS_MODES, EnvConfig, MaintenanceCore
+from ea_gym.env.costs import CostModel
+from ea_gym.models import MODELS, SystemModel, get_model
+
+
+class BondGraphMaintenanceEnv(gym.Env):
+    """
+    ## Description
+
+    A machine modelled as a bond graph (by default the paper's spring-mass-damper) runs under a random
+    load while one of its components degrades: its parameter drifts toward a safe limit from a random
+    time on, at a random rate (linear drift, gamma or Wiener process). In parallel, a fault-free
+    reference model runs under the same load, and the Energy-Activity PHM chain of the paper watches
+    the noisy sensors: it computes every element's Energy Activity (EA) and EAI, detects a fault from
+    the EA residuals, isolates the component with a neural network on STFT and energy-balance features,
+    estimates its parameter by EA inversion and extrapolates it to the safe limits for the remaining
+    useful life (RUL). The agent decides the maintenance: carry on, a corrective action on a component,
+    or its replacement. Failure (a parameter outside its safe limits) is expensive; so are downtime,
+    replacements and corrective actions.
+
+    ## Action Space
+
+    `Discrete(1 + 2n)` for the n maintainable components (`env.unwrapped.action_meanings`):
+
+    - 0: carry on
+    - 1..n: corrective action on component i for this step: its parameter moves toward nominal (and
+      past it, if continued) at `corrective_rate` x its safe range per second; costs `costs.corrective`
+    - n+1..2n: replace component i: back to nominal, `costs.replacement`, and `costs.replace_downtime`
+      steps without production
+
+    Orders given while the machine is down are ignored.
+
+    ## Observation Space
+
+    A `Dict`, float32 arrays (E elements, C = R/C/I components, K = 1 + n classes):
+
+    | key | shape | meaning |
+    |---|---|---|
+    | `ea` | (E,) | Energy Activity of every element over the step's window (J) |
+    | `eai` | (C,) | Energy Activity Index of every component |
+    | `residual` | (E,) | relative EA residual, (EA - EA_ref) / EA_ref |
+    | `diagnosis` | (K,) | class probabilities, classes in `env.unwrapped.diagnosis_classes` |
+    | `parameter_estimate` | (n,) | estimate of each component's parameter as its position in the safe range: 0 lower limit, 1 upper (clipped to [-1, 2]) |
+    | `rul` | (3,) | estimated RUL (s): point, interval low, interval high, clipped to [0, `rul_max`] |
+    | `time_since_maintenance` | (1,) | s |
+    | `maintenance_in_progress` | (1,) | 1 while the machine is down |
+
+    `obs_mode` selects the information regime: `"phm"` (the full chain, above), `"sensors"` (measured
+    signal features only: no `diagnosis`, `parameter_estimate` or `rul`) or `"oracle"` (the same keys
+    as `"phm"`, holding the true faulty component, true parameters and true RUL).
+
+    ## Rewards
+
+    Minus the step's cost (>= 0), from `CostModel`: corrective action per step, replacement, failure,
+    and lost production per step down. `info["cost"]` has the breakdown.
+
+    ## Starting State
+
+    All components at nominal, the machine at rest, a new random load (random-phase multisine around
+    the nominal load), and a fault drawn: which component, when it arrives, its direction and rate.
+
+    ## Episode End
+
+    Termination when a parameter leaves its safe limits (unless `continue_after_failure=True`: then a
+    forced replacement with `costs.failure_downtime` steps down, and the episode goes on). Truncation
+    after `horizon` steps.
+
+    ## Arguments
+
+    ```python
+    gymnasium.make("ea_gym/BondGraphMaintenance-v0", system="spring_mass_damper", obs_mode="phm",
+                   step_seconds=1.0, window_seconds=None, noise=0.01, horizon=500, costs=CostModel(),
+                   wear=None, corrective_rate=0.02, continue_after_failure=False, rul_max=1000.0,
+                   sample_rate=100.0, classifier=None, render_mode=None)
+    ```
+
+    - `system`: a built-in model name or a `SystemModel` (bond graph with nominal values and safe limits).
+    - `step_seconds`: degradation time per step; `window_seconds`: measured operation per step (default
+      equal: continuous operation; a larger step is slow wear watched through periodic snapshots).
+    - `noise`: sensor noise std as a fraction of each signal's RMS.
+    - `wear`: `{component: WearConfig(...)}`; default every component with safe limits, linear drift.
+    - `classifier`: a `FaultClassifier` or a path to one; default the network shipped for the system.
+    - `render_mode`: `"rgb_array"` (recent EA, parameter estimate and RUL) or `"ansi"`.
+
+    ## Version History
+
+    - v0: first version.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
+
+    def __init__(
+        self,
+        system: str | SystemModel = "spring_mass_damper",
+        obs_mode: str = "phm",
+        step_seconds: float = 1.0,
+        window_seconds: float | None = None,
+        noise: float = 0.01,
+        horizon: int = 500,
+        costs: CostModel | None = None,
+        wear: dict[str, WearConfig] | None = None,
+        corrective_rate: float = 0.02,
+        continue_after_failure: bool = False,
+        rul_max: float = 1000.0,
+        sample_rate: float = 100.0,
+        classifier: FaultClassifier | str | None = None,
+        render_mode: str | None = None,
+    ):
+        if isinstance(system, str):
+            if system not in MODELS:
+                raise ValueError(f"system must be one of {sorted(MODELS)} or a SystemModel, got {system!r}")
+            system = get_model(system)
+        elif not isinstance(system, SystemModel):
+            raise TypeError(f"system must be a model name or a SystemModel, got {type(system).__name__}")
+        if obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if isinstance(classifier, str):
+            classifier = FaultClassifier.load(classifier)
+        self.config = EnvConfig(
+            step_seconds=step_seconds, window_seconds=window_seconds, sample_rate=sample_rate, noise=noise,
+            horizon=horizon, obs_mode=obs_mode, costs=costs or CostModel(), wear=wear,
+            corrective_rate=corrective_rate, continue_after_failure=continue_after_failure, rul_max=rul_max,
+        )
+        self.core = MaintenanceCore(system, self.config, 1, classifier)
+        self.model = system
+        self.render_mode = render_mode
+        components = self.core.components
+        self.maintainable_components = components
+        self.diagnosis_classes = self.core.classes
+        self.action_meanings = ("carry on", *(f"corrective action on {c}" for c in components), *(f"replace {c}" for c in components))
+        self.nominal_parameters = dict(zip(system.parameter_names, map(float, system.parameter_vector())))
+        self.safe_limits = {name: tuple(map(float, limits)) for name, limits in system.safe_limits.items()}
+        self.action_space = spaces.Discrete(len(self.action_meanings))
+        self.observation_space = observation_space(self.core)
+        self._history: list[dict[str, Any]] = []
+
+    def reset(self, *, seed: int | None = None, options: dict | None = None):
+        super().reset(seed=seed)
+        observation = self.core.reset(self.np_random)
+        self._history = []
+        return _first(observation), self._info_at_reset()
+
+    def step(self, action):
+        if not self.action_space.contains(action):
+            raise ValueError(f"action must be an int in [0, {self.action_space.n - 1}] ({self.action_meanings}), got {action!r}")
+        result = self.core.step(np.array([int(action)]), self.np_random)
+        observation = _first(result.observation)
+        info = {
+            "true_parameters": dict(zip(self.model.parameter_names, map(float, result.true_parameters[0]))),
+            "true_rul": float(result.true_rul[0]),
+            "cost": {key: float(value[0]) for key, value in result.costs.items()},
+            "failed": bool(result.failed[0]),
+            "events": list(result.events[0]),
+        }
+        self._history.append({"observation": observation, "info": info, "action": int(action)})
+        del self._history[:-120]
+        return observation, float(result.reward[0]), bool(result.terminated[0]), bool(result.truncated[0]), info
+
+    def _info_at_reset(self) -> dict[str, Any]:
+        theta = self.core._state["theta"][0]
+        return {
+            "true_parameters": dict(zip(self.model.parameter_names, map(float, theta))),
+            "true_rul": float(self.core._true_rul()[0]),
+            "cost": {key: 0.0 for key in ("corrective", "replacement", "failure", "lost_production", "total")},
+            "failed": False,
+            "events": [],
+        }
+
+    def render(self):
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'ansi' to make()")
+            return None
+        from ea_gym.env.rendering import render_ansi, render_rgb
+
+        return (render_rgb if self.render_mode == "rgb_array" else render_ansi)(self, self._history)
+
+
+class SpringMassDamperEnv(BondGraphMaintenanceEnv):
+    __doc__ = BondGraphMaintenanceEnv.__doc__
+
+    def __init__(self, **kwargs: Any):
+        if "system" in kwargs:
+            raise TypeError("SpringMassDamper-v0 is the spring-mass-damper; use BondGraphMaintenance-v0 for another system")
+        super().__init__(system="spring_mass_damper", **kwargs)
+
+
+def observation_space(core: MaintenanceCore) -> spaces.Dict:
+    """The Dict observation space of one system."""
+    E, C, K, n = len(core.elements), len(core.rco), len(core.classes), len(core.components)
+    config = core.config
+    keys = {
+        "ea": spaces.Box(0.0, 1e6, (E,), np.float32),
+        "eai": spaces.Box(0.0, 1.0, (C,), np.float32),
+        "residual": spaces.Box(-1e6, 1e6, (E,), np.float32),
+        "time_since_maintenance": spaces.Box(0.0, config.horizon * config.step_seconds, (1,), np.float32),
+        "maintenance_in_progress": spaces.Box(0.0, 1.0, (1,), np.float32),
+    }
+    if config.obs_mode != "sensors":
+        keys["diagnosis"] = spaces.Box(0.0, 1.0, (K,), np.float32)
+        keys["parameter_estimate"] = spaces.Box(-1.0, 2.0, (n,), np.float32)
+        keys["rul"] = spaces.Box(0.0, config.rul_max, (3,), np.float32)
+    return spaces.Dict(keys)
+
+
+def _first(batch: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    return {key: value[0] for key, value in batch.items()}

@@ -1,0 +1,68 @@
+"""Rendering of the maintenance environment: a picture of the recent steps, or a text line."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def render_ansi(env: Any, history: list[dict[str, Any]]) -> str:
+    """One line per element of the latest step: EA, residual, diagnosis, estimate, RUL, truth."""
+    if not history:
+        return "no step yet\n"
+    last = history[-1]
+    obs, info = last["observation"], last["info"]
+    core = env.core
+    lines = [f"step {len(history)}  action: {env.action_meanings[last['action']]}  cost: {info['cost']['total']:.1f}"]
+    lines.append("EA (J): " + "  ".join(f"{n}={v:.4g}" for n, v in zip(core.elements, obs["ea"])))
+    lines.append("residual: " + "  ".join(f"{n}={v:+.3f}" for n, v in zip(core.elements, obs["residual"])))
+    if "diagnosis" in obs:
+        lines.append("diagnosis: " + "  ".join(f"{c}={p:.2f}" for c, p in zip(env.diagnosis_classes, obs["diagnosis"])))
+        lines.append("RUL (s): {:.1f} [{:.1f}, {:.1f}]".format(*obs["rul"]))
+    truth = "  ".join(f"{n}={v:.4g}" for n, v in info["true_parameters"].items())
+    lines.append(f"true: {truth}  true RUL={info['true_rul']:.1f} s  failed={info['failed']}")
+    lines += [f"event: {e}" for e in info["events"]]
+    return "\n".join(lines) + "\n"
+
+
+def render_rgb(env: Any, history: list[dict[str, Any]]) -> np.ndarray:
+    """Recent EA per element, parameter position in the safe range (true and estimated), RUL."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    core = env.core
+    steps = np.arange(len(history))
+    fig, axes = plt.subplots(3, 1, figsize=(6.4, 6.4), sharex=True)
+    if history:
+        ea = np.array([h["observation"]["ea"] for h in history])
+        for j, name in enumerate(core.elements):
+            axes[0].semilogy(steps, np.maximum(ea[:, j], 1e-12), label=name)
+        truth = np.array([[h["info"]["true_parameters"][c] for c in core.components] for h in history])
+        low, high = core.limits[:, 0], core.limits[:, 1]
+        for d, name in enumerate(core.components):
+            line = axes[1].plot(steps, (truth[:, d] - low[d]) / (high[d] - low[d]), label=f"{name} true")[0]
+            if "parameter_estimate" in history[-1]["observation"]:
+                estimate = np.array([h["observation"]["parameter_estimate"][d] for h in history])
+                axes[1].plot(steps, estimate, "--", color=line.get_color(), label=f"{name} estimate")
+        if "rul" in history[-1]["observation"]:
+            rul = np.array([h["observation"]["rul"] for h in history])
+            axes[2].plot(steps, rul[:, 0], label="estimated RUL")
+            axes[2].fill_between(steps, rul[:, 1], rul[:, 2], alpha=0.3)
+        axes[2].plot(steps, [min(h["info"]["true_rul"], env.config.rul_max) for h in history], "k:", label="true RUL")
+    axes[0].set_ylabel("EA (J)")
+    axes[1].set_ylabel("position in safe range")
+    axes[1].axhline(0.0, color="r", lw=0.8)
+    axes[1].axhline(1.0, color="r", lw=0.8)
+    axes[2].set_ylabel("RUL (s)")
+    axes[2].set_xlabel("recent steps")
+    for ax in axes:
+        ax.legend(fontsize=7, loc="upper left", ncol=3)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.canvas.draw()
+    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    plt.close(fig)
+    return image
