@@ -8,7 +8,7 @@ isolated parameter's estimate and its End of Life and RUL with an interval.
 Detection compares, element by element, the EA residual summed over the last ``detector.window``
 seconds with the reference EA over the same span; the threshold is calibrated on fault-free runs at
 the same noise level (``calibrate_thresholds``), and an alarm needs ``persistence`` steps in a row.
-Isolation averages the network's probabilities over the frames seen since the alarm.
+Isolation averages the network's probabilities (exponentially) over the frames seen since the alarm.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of, draw_loads
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow, add_sensor_noise
-from ea_gym.energy import activity_index, window_samples
+from ea_gym.energy import _interval_activity, activity_index, window_samples
 from ea_gym.models import SystemModel
 from ea_gym.prognosis import EAParameterEstimator, EstimatorConfig, ExtrapolationConfig, predict_end_of_life
 
@@ -59,6 +59,7 @@ class PHMConfig:
         sample_rate: Hz.
         noise: sensor noise, fraction of each measured signal's RMS over a step.
         frame: isolation frame (s); must equal the frame the classifier was trained on.
+        isolation_smoothing: weight of the newest frame in the running average of class probabilities.
     """
 
     step: float = 1.0
@@ -66,6 +67,7 @@ class PHMConfig:
     sample_rate: float = 100.0
     noise: float = 0.0
     frame: float = 20.0
+    isolation_smoothing: float = 0.2
     monitor: MonitorConfig = field(default_factory=MonitorConfig)
     detector: DetectorConfig = field(default_factory=DetectorConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
@@ -178,7 +180,7 @@ class PHMChain:
             "above": np.zeros(n, dtype=int),
             "alarm": np.zeros(n, dtype=bool),
             "detection_time": np.full(n, np.nan),
-            "probability_sum": np.zeros((n, len(self.classes))),
+            "probability_average": np.zeros((n, len(self.classes))),
             "raw": np.full((n, D, self.median_length), np.nan),
             "estimates": np.tile(self.model.parameter_vector()[self._degradable_index], (n, 1)),
             "history_t": np.full((n, self.history_length), np.nan),
@@ -257,18 +259,19 @@ class PHMChain:
             features = frame_features(frame, self.classifier.variant, self.model.excitation_bandwidth)
             probabilities[full] = self.classifier.predict_proba(features)
         counted = full & s["alarm"]
-        s["probability_sum"][counted] += probabilities[counted]
-        fault_scores = s["probability_sum"][:, 1:]
-        isolated = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
-        changed = isolated != s["isolated"]
-        s["isolated"] = isolated
+        # an exponential average over the frames since the alarm: later frames, with the fault grown,
+        # outweigh the first ambiguous ones
+        weight = self.config.isolation_smoothing
+        s["probability_average"][counted] += weight * (probabilities[counted] - s["probability_average"][counted])
+        fault_scores = s["probability_average"][:, 1:]
+        s["isolated"] = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
         return probabilities
 
     def _estimate(self) -> np.ndarray:
         """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).
 
-        From the alarm until isolation every degradable parameter is estimated; afterwards only the
-        isolated one, and the others keep their last value.
+        After an alarm every degradable parameter is estimated at every step (each as if it alone were
+        faulty), so that whichever the isolation settles on has a full history to extrapolate.
         """
         s = self.state
         D = len(self.degradable)
@@ -276,19 +279,20 @@ class PHMChain:
         ready = (s["steps"] >= self.estimate_steps) & s["alarm"]
         if not np.any(ready):
             return s["estimates"].copy()
-        rows, columns = [], []
-        for i in np.flatnonzero(ready):
-            chosen = [s["isolated"][i] - 1] if s["isolated"][i] > 0 else range(D)
-            rows += [i] * len(chosen)
-            columns += list(chosen)
-        rows, columns = np.array(rows), np.array(columns)
-        span = self.estimate_steps * (self.step_samples // self.monitor.n_sub)
-        ea = s["ea"][rows][:, self.monitor._component_index, -span:].sum(-1)
+        rows = np.repeat(np.flatnonzero(ready), D)
+        columns = np.tile(np.arange(D), int(ready.sum()))
         c = self.monitor.config.smoothing
-        start = self.monitor.filter(s["signals"][rows][..., : 2 * c + 1])[..., c]
-        load = s["load"][rows][..., c:]
-        values = self.estimator.estimate(self._degradable_index[columns], start, load[:, 0], load[:, 1], ea)
+        signals, load = s["signals"][rows], s["load"][rows][..., c:]
+        start = self.monitor.state_filter(signals[..., : 2 * c + 1])[..., c]
+        # the measured EA is recomputed over one contiguous stretch, processed exactly as the
+        # candidates' signals are: weakly identifiable parameters (a light damper) feel any mismatch
+        measured = np.concatenate([signals[..., c:], load[:, :1]], axis=1)
+        power, _ = self.monitor.powers(measured, c)
+        ea = _interval_activity(power[:, self.monitor._component_index], self.h).sum(-1)
         raw = s["raw"]
+        values = self.estimator.estimate(
+            self._degradable_index[columns], start, load[:, 0], load[:, 1], ea, previous=raw[rows, columns, -1]
+        )
         raw[rows, columns] = np.concatenate([raw[rows, columns, 1:], values[:, None]], axis=-1)
         s["estimates"][rows, columns] = np.nanmedian(raw[rows, columns], axis=-1)
         fresh = np.full((self.n, D), np.nan)

@@ -36,15 +36,20 @@ class EstimatorConfig:
     Attributes:
         window: inversion window t1 - t0 (s).
         grid: candidates per pass.
-        passes: refinement passes (each narrows the grid to two steps around the best candidate).
+        passes: passes from the full range (each narrows the grid to two steps around the best candidate).
         margin: how far beyond the safe limits the first grid reaches, as a fraction of their span.
+        warm_span: half-width of the first grid around the previous estimate, fraction of the safe
+            span, when there is one (parameters change little from one window to the next).
+        warm_passes: passes from a warm start.
         median: length of the (causal) median filter over successive estimates (paper 4.4).
     """
 
     window: float = 3.0
-    grid: int = 15
-    passes: int = 3
+    grid: int = 9
+    passes: int = 4
     margin: float = 0.5
+    warm_span: float = 0.05
+    warm_passes: int = 2
     median: int = 3
 
 
@@ -87,7 +92,13 @@ class EAParameterEstimator:
         return ea.reshape(n, g, -1)
 
     def estimate(
-        self, parameter_index: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, ea: np.ndarray
+        self,
+        parameter_index: np.ndarray,
+        start: np.ndarray,
+        u: np.ndarray,
+        du: np.ndarray,
+        ea: np.ndarray,
+        previous: np.ndarray | None = None,
     ) -> np.ndarray:
         """Parameter value per system that best explains the measured EA.
 
@@ -96,12 +107,19 @@ class EAParameterEstimator:
             start: denoised measured signals (flows of I, displacements of C) at t0 - c, (N, nx).
             u, du: load and its derivative from t0 - c to t1, (N, c + L + 1).
             ea: measured EA of each component over [t0, t1] (J), (N, C).
+            previous: the last estimate of each system, NaN where there is none; all finite: warm start.
         """
         n = len(parameter_index)
         names = self.model.parameter_names
         grids = np.stack([self.candidate_grid(names[j]) for j in parameter_index])
+        passes = self.config.passes
+        if previous is not None and np.all(np.isfinite(previous)):
+            spans = np.array([np.subtract(*self.model.safe_limits[names[j]][::-1]) for j in parameter_index])
+            offsets = np.linspace(-1.0, 1.0, self.config.grid) * self.config.warm_span
+            grids = np.maximum(previous[:, None] + offsets * spans[:, None], 1e-6 * grids[:, -1:])
+            passes = self.config.warm_passes
         scale = np.maximum(ea, 1e-300)[:, None, :]
-        for _ in range(self.config.passes):
+        for _ in range(passes):
             cost = (((self._candidate_ea(parameter_index, grids, start, u, du) - ea[:, None, :]) / scale) ** 2).sum(-1)
             best = np.argmin(cost, axis=1)
             step = grids[:, 1] - grids[:, 0]
@@ -151,7 +169,7 @@ class ExtrapolationConfig:
     """
 
     degree: int = 1
-    span: float = 20.0
+    span: float = 30.0
     min_points: int = 5
     confidence: float = 0.95
     horizon: float = 2000.0

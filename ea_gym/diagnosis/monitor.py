@@ -39,12 +39,15 @@ class MonitorConfig:
         polyorder: Savitzky-Golay polynomial order.
         balance_window: span (s, a multiple of ``sub_window``) of the energy balances regressed on the
             component energies; longer spans beat the noise of the kinetic-energy end points.
+        state_polyorder: polynomial order of the smoother that estimates a state from samples on both
+            sides (the EA inversion's starting point): a higher order keeps the load's faster components.
     """
 
     sub_window: float = 0.1
     smoothing: int = 51
     polyorder: int = 3
     balance_window: float = 0.1
+    state_polyorder: int = 7
 
 
 @dataclass(frozen=True)
@@ -91,6 +94,7 @@ class Monitor:
 
     def __init__(self, model: SystemModel, sample_period: float, config: MonitorConfig = MonitorConfig(), n_systems: int = 1):
         self.filter = SavitzkyGolay(config.smoothing, config.polyorder, sample_period)
+        self.state_filter = SavitzkyGolay(config.smoothing, config.state_polyorder, sample_period)
         self.model = model
         self.h = sample_period
         self.config = config

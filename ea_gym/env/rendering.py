@@ -59,7 +59,8 @@ def render_rgb(env: Any, history: list[dict[str, Any]]) -> np.ndarray:
     axes[2].set_ylabel("RUL (s)")
     axes[2].set_xlabel("recent steps")
     for ax in axes:
-        ax.legend(fontsize=7, loc="upper left", ncol=3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7, loc="upper left", ncol=3)
         ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.canvas.draw()
