@@ -401,3 +401,21 @@ def run_scenario(scenario, chain: PHMChain, rng: np.random.Generator, progress=N
     ends = np.array([s.t[0] for s in statuses])
     index = np.round(ends * scenario.sample_rate).astype(int)
     return ChainRun(statuses=statuses, t=ends, true_parameters=plant.parameters[index], residual_series=np.concatenate(residuals, -1))
+
+
+def build_chain(
+    model: SystemModel, config: PHMConfig, classifier: FaultClassifier, rng: np.random.Generator, n_systems: int = 1
+) -> PHMChain:
+    """A chain for ``model`` with its detection thresholds calibrated at ``config.noise``."""
+    return PHMChain(model, classifier, calibrate_thresholds(model, config, rng), config, n_systems)
+
+
+def classifier_for(model: SystemModel, rng: np.random.Generator, path: str | None = None) -> FaultClassifier:
+    """The isolation network: from ``path``, else the one shipped for the model, else trained now."""
+    from ea_gym.diagnosis.training import load_shipped_classifier, shipped_classifier_path, train_isolation
+
+    if path is not None:
+        return FaultClassifier.load(path)
+    if shipped_classifier_path(model.name).is_file():
+        return load_shipped_classifier(model.name)
+    return train_isolation(model, rng, variants=("strong",)).classifiers["strong"]

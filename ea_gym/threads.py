@@ -7,7 +7,8 @@ when another process holds a core (threads wait on each other). The hot paths ru
 
 from __future__ import annotations
 
-from contextlib import AbstractContextManager
+from collections.abc import Iterator
+from contextlib import AbstractContextManager, contextmanager
 from functools import cache
 
 import scipy.linalg  # noqa: F401 - loads scipy's BLAS so that the controller sees it
@@ -22,3 +23,20 @@ def _controller() -> ThreadpoolController:
 def single_threaded_blas() -> AbstractContextManager:
     """A context in which numpy's and scipy's BLAS use one thread (about 10 us to enter)."""
     return _controller().limit(limits=1, user_api="blas")
+
+
+@contextmanager
+def single_threaded_torch() -> Iterator[None]:
+    """Run torch on one thread, then restore its setting.
+
+    The isolation network is small: a second torch thread gains nothing and, right after numpy work,
+    competes with BLAS threads that are still spinning, which made training ten times slower here.
+    """
+    import torch
+
+    previous = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        yield
+    finally:
+        torch.set_num_threads(previous)

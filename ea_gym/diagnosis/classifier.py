@@ -16,6 +16,7 @@ import torch
 from torch import nn
 
 from ea_gym.files import write_atomic
+from ea_gym.threads import single_threaded_torch
 
 
 @dataclass(frozen=True)
@@ -77,6 +78,17 @@ class FaultClassifier:
         config: TrainingConfig = TrainingConfig(),
     ) -> dict[str, float]:
         """Train on integer ``labels``; keep the weights of the epoch with the best validation accuracy."""
+        with single_threaded_torch():
+            return self._fit(features, labels, validation, rng, config)
+
+    def _fit(
+        self,
+        features: np.ndarray,
+        labels: np.ndarray,
+        validation: tuple[np.ndarray, np.ndarray],
+        rng: np.random.Generator,
+        config: TrainingConfig,
+    ) -> dict[str, float]:
         torch.manual_seed(int(rng.integers(2**31)))
         self.network = _network(features.shape[1], config.hidden, len(self.classes))
         self.hidden = config.hidden
@@ -101,7 +113,7 @@ class FaultClassifier:
 
     def predict_proba(self, features: np.ndarray) -> np.ndarray:
         """Class probabilities, (n, n_classes)."""
-        with torch.no_grad():
+        with torch.no_grad(), single_threaded_torch():
             return torch.softmax(self.network(self._inputs(features)), dim=1).numpy()
 
     def save(self, path: str | os.PathLike[str]) -> Path:

@@ -20,7 +20,7 @@ from ea_gym.diagnosis.monitor import Monitor, add_sensor_noise
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.env.costs import CostModel
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds
+from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for
 
 OBS_MODES = ("phm", "sensors", "oracle")
 LOAD_COMPONENTS = 16
@@ -131,12 +131,9 @@ class MaintenanceCore:
         self.chain: PHMChain | None = None
         if config.obs_mode == "phm":
             if classifier is None:
-                from ea_gym.diagnosis.training import load_shipped_classifier
-
-                classifier = load_shipped_classifier(model.name)
+                classifier = classifier_for(model, np.random.default_rng(calibration_seed))
             phm_config = PHMConfig(step=config.window, step_time=config.step_seconds, sample_rate=config.sample_rate, noise=config.noise)
-            thresholds = calibrate_thresholds(model, phm_config, np.random.default_rng(calibration_seed))
-            self.chain = PHMChain(model, classifier, thresholds, phm_config, n_systems)
+            self.chain = build_chain(model, phm_config, classifier, np.random.default_rng(calibration_seed), n_systems)
             self.monitor = self.chain.monitor
         self.elements = self.monitor.elements
         self.rco = self.monitor.components

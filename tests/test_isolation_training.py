@@ -1,0 +1,188 @@
+"""Tests of ea_gym.diagnosis.training (and a smoke run of experiments/train_isolation.py) on a small database.
+
+The database here is far smaller than the shipped one (intervals=10, 8 loads, noise 0 only, frames
+ending at 30 and 40 s: 296 runs, 592 frames, 90 of them test frames; about 2 s to simulate and train)
+so that the whole file runs in well under 30 s.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.database import DatabaseConfig
+from ea_gym.diagnosis.features import VARIANTS
+from ea_gym.diagnosis.training import (
+    MAGNITUDE_BINS,
+    IsolationTraining,
+    evaluate_isolation,
+    load_shipped_classifier,
+    noise_key,
+    shipped_classifier_path,
+    train_isolation,
+)
+from ea_gym.models import spring_mass_damper
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SMALL = DatabaseConfig(intervals=10, n_loads=8, fault_free_runs=4, noise_levels=(0.0,), frame=20.0, frame_ends=(30.0, 40.0))
+SEED = 0
+
+
+@pytest.fixture(scope="module")
+def trained() -> IsolationTraining:
+    return train_isolation(spring_mass_damper(), np.random.default_rng(SEED), SMALL)
+
+
+def test_database_and_classifiers(trained: IsolationTraining) -> None:
+    db = trained.database
+    assert db.classes == ("none", "k", "m", "b")
+    assert set(trained.classifiers) == set(VARIANTS)
+    for variant, classifier in trained.classifiers.items():
+        assert classifier.variant == variant
+        assert classifier.n_features == db.features[variant].shape[1]
+    assert set(np.unique(db.split)) == {0, 1, 2}
+    assert set(trained.training["variants"]) == set(VARIANTS)
+    json.dumps(trained.training, allow_nan=False)
+
+
+def test_counts_add_up_to_the_test_split(trained: IsolationTraining) -> None:
+    db, evaluation = trained.database, trained.evaluation
+    test = db.split == 2
+    assert evaluation["test_frames"] == int(test.sum())
+    assert evaluation["noise_levels"] == [0.0]
+    for variant in VARIANTS:
+        result = evaluation["variants"][variant]
+        total = 0
+        for level in evaluation["noise_levels"]:
+            n = result["by_noise"][noise_key(level)]["n"]
+            assert n["all"] == n["none"] + n["quarter"] + n["below_quarter"]
+            assert n["quarter_with_none"] == n["quarter"] + n["none"]
+            assert n["fault"] == n["quarter"] + n["below_quarter"]
+            assert sum(n["per_class"].values()) == n["all"]
+            total += n["all"]
+        assert total == int(test.sum()) == result["pooled"]["n"]["all"]
+        # the magnitude bins cover every fault frame exactly once
+        bins = result["pooled"]["accuracy_vs_magnitude"]
+        assert [(b["low"], b["high"]) for b in bins] == list(MAGNITUDE_BINS)
+        assert sum(b["n"] for b in bins) == result["pooled"]["n"]["fault"]
+    # both variants are scored on the very same frames
+    paper, strong = (evaluation["variants"][v]["pooled"]["n"] for v in ("paper", "strong"))
+    assert paper == strong
+
+
+def test_confusion_rows_sum_to_class_counts(trained: IsolationTraining) -> None:
+    db, evaluation = trained.database, trained.evaluation
+    test = db.split == 2
+    population = test & ((db.labels == 0) | (db.magnitude >= 0.25))
+    expected = [int((population & (db.labels == i)).sum()) for i in range(len(db.classes))]
+    for variant in VARIANTS:
+        scores = evaluation["variants"][variant]["by_noise"]["0"]
+        confusion = np.asarray(scores["confusion"])
+        assert confusion.shape == (len(db.classes), len(db.classes))
+        assert confusion.sum(axis=1).tolist() == expected
+        assert confusion.sum() == scores["n"]["quarter_with_none"]
+        # the diagonal is the accuracy of the quarter+none population
+        assert np.trace(confusion) / confusion.sum() == pytest.approx(scores["accuracy_quarter_with_none"])
+
+
+def test_evaluation_is_json_and_recomputable(trained: IsolationTraining) -> None:
+    json.dumps(trained.evaluation, allow_nan=False)
+    assert evaluate_isolation(trained.database, trained.classifiers) == trained.evaluation
+
+
+def test_quarter_accuracy_well_above_chance(trained: IsolationTraining) -> None:
+    # Among the 3 fault classes (k, m, b) chance is 1/3. The strong features isolate every fault at
+    # least a quarter of the way to a limit at noise 0 (100 % on the shipped database); on this small
+    # database (about 60 such test frames) seeds 0-9 gave 0.968-1.0 (seed 0: 61/62 = 0.984), so 0.9
+    # is far above chance and still leaves room for numerical drift across library versions.
+    # The paper's peaks alone confuse k and m (both move sqrt(k/m)): seeds 0-9 gave 0.50-0.74 here and
+    # 0.65 on the shipped database, so for them we only ask for better than chance.
+    scores = trained.evaluation["variants"]
+    assert scores["strong"]["by_noise"]["0"]["n"]["quarter"] >= 40
+    assert scores["strong"]["by_noise"]["0"]["accuracy_quarter"] >= 0.9
+    assert scores["paper"]["by_noise"]["0"]["accuracy_quarter"] > 1.0 / 3.0
+
+
+def test_save_and_load_give_identical_probabilities(trained: IsolationTraining, tmp_path: Path) -> None:
+    db = trained.database
+    for variant, classifier in trained.classifiers.items():
+        path = classifier.save(tmp_path / f"{variant}.pt")
+        loaded = FaultClassifier.load(path)
+        assert loaded.classes == classifier.classes and loaded.variant == variant
+        features = db.features[variant]
+        assert np.array_equal(loaded.predict_proba(features), classifier.predict_proba(features))
+
+
+def test_a_variant_is_reproducible_alone(trained: IsolationTraining) -> None:
+    # each variant trains from its own child generator: training only "strong" with the same seed
+    # gives the same network as training both
+    alone = train_isolation(spring_mass_damper(), np.random.default_rng(SEED), SMALL, variants=("strong",))
+    features = trained.database.features["strong"]
+    assert np.array_equal(alone.database.features["strong"], features)
+    assert np.array_equal(alone.classifiers["strong"].predict_proba(features),
+                          trained.classifiers["strong"].predict_proba(features))
+
+
+def test_shipped_classifier_path() -> None:
+    path = shipped_classifier_path("spring_mass_damper")
+    assert path.name == "spring_mass_damper_strong.pt"
+    assert path.parent.name == "data" and path.parent.parent.name == "ea_gym"
+    assert shipped_classifier_path("rlc_circuit", "paper").name == "rlc_circuit_paper.pt"
+
+
+def test_unknown_model_names_the_script() -> None:
+    with pytest.raises(FileNotFoundError, match=r"python experiments/train_isolation\.py"):
+        load_shipped_classifier("no_such_model")
+    with pytest.raises(ValueError, match="variant"):
+        load_shipped_classifier("spring_mass_damper", "weak")
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_shipped_classifier_matches_the_features(trained: IsolationTraining, variant: str) -> None:
+    if not shipped_classifier_path("spring_mass_damper", variant).is_file():
+        pytest.skip("run python experiments/train_isolation.py to write the shipped classifiers")
+    classifier = load_shipped_classifier("spring_mass_damper", variant)
+    assert classifier.variant == variant
+    assert classifier.classes == trained.database.classes
+    # stale if the feature definitions changed since it was trained
+    assert classifier.n_features == trained.database.features[variant].shape[1]
+    probabilities = classifier.predict_proba(trained.database.features[variant][:5])
+    assert probabilities.shape == (5, 4) and np.allclose(probabilities.sum(axis=1), 1.0)
+
+
+def test_script_writes_its_results(tmp_path: Path) -> None:
+    spec = importlib.util.spec_from_file_location("train_isolation", ROOT / "experiments" / "train_isolation.py")
+    script = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(script)
+    out = tmp_path / "isolation"
+    argv = ["--no-ship", "--out", str(out), "--intervals", "4", "--loads", "2", "--fault-free-runs", "3",
+            "--noise-levels", "0", "0.05", "--frame-ends", "30", "40", "--epochs", "50"]
+    assert script.main(argv) == 0
+    names = {p.name for p in out.iterdir()}
+    assert {"isolation.json", "isolation.md", "fig8_peaks.png", "confusion.png", "accuracy_vs_magnitude.png"} <= names
+    assert not any(name.startswith(".") for name in names)  # no temporary files left behind
+    report = json.loads((out / "isolation.json").read_text())
+    assert report["shipped"] == []
+    assert report["database"]["frames"] == sum(report["database"]["split_frames"].values())
+    assert set(report["evaluation"]["variants"]) == set(VARIANTS)
+    assert report["evaluation"]["noise_levels"] == [0.0, 0.05]
+    text = (out / "isolation.md").read_text()
+    assert "python experiments/train_isolation.py --no-ship" in text
+    assert "STFT" in text and "energy balance" in text
+
+
+def test_single_threaded_torch_restores_the_thread_count() -> None:
+    import torch
+
+    from ea_gym.threads import single_threaded_torch
+
+    before = torch.get_num_threads()
+    with single_threaded_torch():
+        assert torch.get_num_threads() == 1
+    assert torch.get_num_threads() == before
