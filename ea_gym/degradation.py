@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -137,30 +138,28 @@ class Wear:
 
     At every (re)start a system draws which of the wearing components will fail, when its fault
     arrives, its direction and mean rate; from the arrival on the parameter drifts by the process's
-    increments. All randomness comes from the generator passed to ``start`` and ``advance``.
+    increments. System i draws only from its own generator ``rngs[i]``, so a system's wear does not
+    depend on how many others are stepped with it.
 
     Args:
         nominal: nominal values of the wearing components, (D,).
         limits: their (lower, upper) safe limits, (D, 2).
         configs: one WearConfig per wearing component.
+        n_systems: N.
     """
 
-    def __init__(self, nominal: np.ndarray, limits: np.ndarray, configs: list[WearConfig]):
+    def __init__(self, nominal: np.ndarray, limits: np.ndarray, configs: list[WearConfig], n_systems: int):
         self.nominal = np.asarray(nominal, dtype=float)
         self.limits = np.asarray(limits, dtype=float)
         self.configs = list(configs)
-        self.faulty = np.zeros(0, dtype=int)
-        self.arrival = np.zeros(0)
-        self.velocity = np.zeros(0)  # mean drift of the faulty component, parameter unit per s
+        self.faulty = np.zeros(n_systems, dtype=int)
+        self.arrival = np.full(n_systems, np.inf)
+        self.velocity = np.zeros(n_systems)  # mean drift of the faulty component, parameter unit per s
 
-    def start(self, n: int, rng: np.random.Generator, clock: np.ndarray, systems: np.ndarray | None = None) -> None:
-        """Draw a new fault for every system (or those in the boolean mask), arriving after ``clock`` (s)."""
-        if systems is None:
-            self.faulty = np.zeros(n, dtype=int)
-            self.arrival = np.zeros(n)
-            self.velocity = np.zeros(n)
-            systems = np.ones(n, dtype=bool)
+    def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray) -> None:
+        """Draw a new fault for the systems in the boolean mask, arriving after their ``clock`` (s)."""
         for i in np.flatnonzero(systems):
+            rng = rngs[i]
             d = int(rng.integers(len(self.configs)))
             config = self.configs[d]
             direction = config.direction or (1 if rng.random() < 0.5 else -1)
@@ -169,11 +168,12 @@ class Wear:
             self.arrival[i] = clock[i] + rng.uniform(*config.arrival)
             self.velocity[i] = rng.uniform(*config.rate) * (limit - self.nominal[d])
 
-    def advance(self, values: np.ndarray, clock: np.ndarray, dt: float, rng: np.random.Generator) -> np.ndarray:
+    def advance(self, values: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """Wear the faulty components over [clock, clock + dt]; ``values`` (N, D) in parameter units."""
         out = values.copy()
         active = np.clip(clock + dt - np.maximum(self.arrival, clock), 0.0, dt)  # seconds of wear in the step
         for i in np.flatnonzero(active > 0):
+            rng = rngs[i]
             d = self.faulty[i]
             config, mean = self.configs[d], self.velocity[i] * active[i]
             if config.process == "linear" or mean == 0:

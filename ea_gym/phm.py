@@ -84,7 +84,9 @@ class HealthStatus:
         eai, eai_reference: EAI of every component over the step, (N, C).
         statistic: relative EA residual of every element over the detection window, (N, E).
         alarm: a fault has been detected, (N,); detection_time: when (s), NaN before.
-        probabilities: isolation class probabilities, (N, K) ("none" = 1 until a full frame).
+        probabilities: the newest frame's isolation class probabilities, (N, K) ("none" = 1 until a full frame).
+        diagnosis: the chain's belief: the running average of the probabilities since the alarm,
+            ("none" = 1 before), (N, K).
         isolated: class index of the isolated parameter, 0 while none, (N,).
         estimates: estimate of every degradable parameter, (N, D), each as if it alone were faulty.
         estimate: the isolated parameter's filtered estimate, NaN while none, (N,); it describes the
@@ -102,6 +104,7 @@ class HealthStatus:
     alarm: np.ndarray
     detection_time: np.ndarray
     probabilities: np.ndarray
+    diagnosis: np.ndarray
     isolated: np.ndarray
     estimates: np.ndarray
     estimate: np.ndarray
@@ -227,13 +230,13 @@ class PHMChain:
         s["detection_time"] = np.where(new_alarm, s["time"], s["detection_time"])
         s["alarm"] = s["alarm"] | new_alarm
 
-        probabilities = self._isolate()
+        probabilities, diagnosis = self._isolate()
         estimates = self._estimate()
         estimate, eol = self._prognose(estimates)
         return HealthStatus(
             t=s["time"].copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, eai=eai, eai_reference=eai_ref,
             statistic=statistic, alarm=s["alarm"].copy(), detection_time=s["detection_time"].copy(),
-            probabilities=probabilities, isolated=s["isolated"].copy(), estimates=estimates, estimate=estimate,
+            probabilities=probabilities, diagnosis=diagnosis, isolated=s["isolated"].copy(), estimates=estimates, estimate=estimate,
             eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2],
         )
 
@@ -246,7 +249,8 @@ class PHMChain:
         statistic = (ea - ref) / np.maximum(ref, 1e-300)
         return np.where((seen >= self.detect_subs)[:, None], statistic, 0.0)
 
-    def _isolate(self) -> np.ndarray:
+    def _isolate(self) -> tuple[np.ndarray, np.ndarray]:
+        """The newest frame's class probabilities and the running belief, both (N, K)."""
         s = self.state
         probabilities = np.zeros((self.n, len(self.classes)))
         probabilities[:, 0] = 1.0
@@ -265,7 +269,10 @@ class PHMChain:
         s["probability_average"][counted] += weight * (probabilities[counted] - s["probability_average"][counted])
         fault_scores = s["probability_average"][:, 1:]
         s["isolated"] = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
-        return probabilities
+        total = s["probability_average"].sum(1, keepdims=True)
+        none = np.eye(len(self.classes))[0]
+        diagnosis = np.where(total > 0, s["probability_average"] / np.where(total > 0, total, 1.0), none)
+        return probabilities, diagnosis
 
     def _estimate(self) -> np.ndarray:
         """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).

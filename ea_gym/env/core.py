@@ -8,6 +8,7 @@ PHM chain (or only the monitor), then check failures and count costs.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -126,7 +127,9 @@ class MaintenanceCore:
         self.limits = np.array([model.safe_limits[c] for c in self.components])
         wearing = [c for c in self.components if c in wear]
         self._wearing_index = np.array([model.parameter_names.index(c) for c in wearing])
-        self.wear = Wear(self.nominal[self._wearing_index], np.array([model.safe_limits[c] for c in wearing]), [wear[c] for c in wearing])
+        self.wear = Wear(
+            self.nominal[self._wearing_index], np.array([model.safe_limits[c] for c in wearing]), [wear[c] for c in wearing], n_systems
+        )
         self.monitor = Monitor(model, self.h, PHMConfig().monitor, n_systems)
         self.chain: PHMChain | None = None
         if config.obs_mode == "phm":
@@ -142,8 +145,12 @@ class MaintenanceCore:
 
     # -- episode bookkeeping ------------------------------------------------------------------
 
-    def reset(self, rng: np.random.Generator, systems: np.ndarray | None = None) -> dict[str, np.ndarray]:
-        """Start new episodes (all systems, or those in the boolean mask); returns the first observation."""
+    def reset(self, rngs: Sequence[np.random.Generator], systems: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Start new episodes (all systems, or those in the boolean mask); returns the first observation.
+
+        System i draws only from ``rngs[i]``, here and in ``step``: its episode is the same whether it
+        is stepped alone or with others.
+        """
         n, nx = self.n, len(self.model.state_names)
         mask = np.ones(n, dtype=bool) if systems is None else np.asarray(systems, dtype=bool)
         if systems is None or not self._state:
@@ -162,25 +169,25 @@ class MaintenanceCore:
                 "load_frequency": np.zeros((n, LOAD_COMPONENTS)),
                 "load_phase": np.zeros((n, LOAD_COMPONENTS)),
             }
-            self.wear.start(n, rng, np.zeros(n))
         s = self._state
         for key in ("plant", "reference", "clock", "operation", "since_maintenance", "corrective_direction"):
             s[key][mask] = 0.0
         s["theta"][mask] = self.nominal
         s["steps"][mask] = 0
         s["down"][mask] = 0
-        self._draw_loads(rng, mask)
-        self.wear.start(n, rng, s["clock"], mask)
+        self._draw_loads(rngs, mask)
+        self.wear.start(rngs, s["clock"], mask)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask if systems is not None else None)
         return self._observe(self._idle_outputs())
 
-    def _draw_loads(self, rng: np.random.Generator, mask: np.ndarray) -> None:
+    def _draw_loads(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         s = self._state
         model = self.model
         for i in np.flatnonzero(mask):
+            rng = rngs[i]
             std = model.nominal_load * rng.uniform(*self.config.load_std)
             s["load_mean"][i] = model.nominal_load
             s["load_amplitude"][i] = std * math.sqrt(2.0 / LOAD_COMPONENTS)
@@ -197,7 +204,7 @@ class MaintenanceCore:
 
     # -- the step ---------------------------------------------------------------------------------
 
-    def step(self, actions: np.ndarray, rng: np.random.Generator) -> StepResult:
+    def step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
         """Advance every system by one step under ``actions`` (N,) in [0, 2 n_components]."""
         actions = np.asarray(actions)
         n_actions = 1 + 2 * len(self.components)
@@ -223,16 +230,16 @@ class MaintenanceCore:
             events[i].append(f"corrective action on {self.components[d]}")
         s["corrective_direction"][~corrective] = 0.0
         for i in np.flatnonzero(replace):
-            self._replace(i, actions[i] - 1 - k, c.replace_downtime, rng, events)
+            self._replace(i, actions[i] - 1 - k, c.replace_downtime, rngs, events)
             costs["replacement"][i] += c.replacement
 
         running = s["down"] == 0
         wearing = s["theta"][:, self._wearing_index]
-        worn = self.wear.advance(wearing, s["clock"], dt, rng)
+        worn = self.wear.advance(wearing, s["clock"], dt, rngs)
         s["theta"][:, self._wearing_index] = np.where(running[:, None], worn, wearing)
         s["clock"] = s["clock"] + dt
 
-        outputs = self._operate(rng)
+        outputs = self._operate(rngs)
         low, high = self.limits[:, 0], self.limits[:, 1]
         values = s["theta"][:, self._component_index]
         failed = running & np.any((values < low) | (values > high), axis=1)
@@ -241,7 +248,7 @@ class MaintenanceCore:
             d = int(np.argmax(np.maximum(low - values[i], values[i] - high)))
             events[i].append(f"failure: {self.components[d]} = {values[i, d]:.4g} outside {tuple(self.limits[d])}")
             if self.config.continue_after_failure:
-                self._replace(i, d, c.failure_downtime, rng, events)
+                self._replace(i, d, c.failure_downtime, rngs, events)
         costs["lost_production"] += np.where(s["down"] > 0, c.lost_production, 0.0)
         s["down"] = np.maximum(s["down"] - 1, 0)
         s["since_maintenance"] = np.where(corrective | replace | failed, 0.0, s["since_maintenance"] + dt)
@@ -264,7 +271,7 @@ class MaintenanceCore:
             events=events,
         )
 
-    def _replace(self, i: int, d: int, downtime: int, rng: np.random.Generator, events: list[list[str]]) -> None:
+    def _replace(self, i: int, d: int, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[str]]) -> None:
         """Put a new component d in system i: nominal value, downtime, a new fault if it was the faulty one."""
         s = self._state
         s["theta"][i, self._component_index[d]] = self.nominal[self._component_index[d]]
@@ -274,7 +281,7 @@ class MaintenanceCore:
         mask = np.zeros(self.n, dtype=bool)
         mask[i] = True
         if self.components[d] in self.wear_components and self.wear_components[self.wear.faulty[i]] == self.components[d]:
-            self.wear.start(self.n, rng, s["clock"], mask)
+            self.wear.start(rngs, s["clock"], mask)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
@@ -285,7 +292,7 @@ class MaintenanceCore:
     def wear_components(self) -> tuple[str, ...]:
         return tuple(self.model.parameter_names[j] for j in self._wearing_index)
 
-    def _operate(self, rng: np.random.Generator) -> dict[str, np.ndarray]:
+    def _operate(self, rngs: Sequence[np.random.Generator]) -> dict[str, np.ndarray]:
         """Simulate one window of plant and reference, measure, and run the chain or the monitor."""
         s = self._state
         t = s["operation"][:, None] + np.arange(self.samples + 1) * self.h
@@ -297,13 +304,13 @@ class MaintenanceCore:
         s["plant"], s["reference"] = plant[:, -1], reference[:, -1]
         s["operation"] = s["operation"] + self.config.window
         measured = np.einsum("nij,ntj->nit", self.monitor.measurement_matrix(s["theta"]), plant)
-        measured = add_sensor_noise(measured, self.config.noise, rng)
+        measured = np.stack([add_sensor_noise(measured[i], self.config.noise, rngs[i]) for i in range(self.n)])
         expected = np.einsum("ij,ntj->nit", self.monitor.measurement_matrix(self.nominal), reference)
         if self.chain is not None:
             status = self.chain.update(measured, expected, u, du)
             return {
                 "ea": status.ea, "ea_reference": status.ea_reference, "eai": status.eai,
-                "diagnosis": status.probabilities, "estimates": status.estimates, "rul": status.rul,
+                "diagnosis": status.diagnosis, "estimates": status.estimates, "rul": status.rul,
             }
         window = self.monitor.update(measured, expected, u)
         ea, ea_ref = window.ea.sum(-1), window.ea_reference.sum(-1)

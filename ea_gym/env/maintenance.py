@@ -150,14 +150,14 @@ class BondGraphMaintenanceEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict | None = None):
         super().reset(seed=seed)
-        observation = self.core.reset(self.np_random)
+        observation = self.core.reset([self.np_random])
         self._history = []
         return _first(observation), self._info_at_reset()
 
     def step(self, action):
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an int in [0, {self.action_space.n - 1}] ({self.action_meanings}), got {action!r}")
-        result = self.core.step(np.array([int(action)]), self.np_random)
+        result = self.core.step(np.array([int(action)]), [self.np_random])
         observation = _first(result.observation)
         info = {
             "true_parameters": dict(zip(self.model.parameter_names, map(float, result.true_parameters[0]))),
