@@ -107,24 +107,30 @@ class EAParameterEstimator:
             start: denoised measured signals (flows of I, displacements of C) at t0 - c, (N, nx).
             u, du: load and its derivative from t0 - c to t1, (N, c + L + 1).
             ea: measured EA of each component over [t0, t1] (J), (N, C).
-            previous: the last estimate of each system, NaN where there is none; all finite: warm start.
+            previous: the last estimate of each system, NaN where there is none; finite: a warm start.
         """
-        n = len(parameter_index)
         names = self.model.parameter_names
         grids = np.stack([self.candidate_grid(names[j]) for j in parameter_index])
-        passes = self.config.passes
-        if previous is not None and np.all(np.isfinite(previous)):
-            spans = np.array([np.subtract(*self.model.safe_limits[names[j]][::-1]) for j in parameter_index])
+        warm = np.zeros(len(parameter_index), dtype=bool) if previous is None else np.isfinite(previous)
+        if np.any(warm):
+            spans = np.array([np.subtract(*self.model.safe_limits[names[j]][::-1]) for j in parameter_index[warm]])
             offsets = np.linspace(-1.0, 1.0, self.config.grid) * self.config.warm_span
-            grids = np.maximum(previous[:, None] + offsets * spans[:, None], 1e-6 * grids[:, -1:])
-            passes = self.config.warm_passes
+            grids[warm] = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
+        # warm and cold systems are searched apart, so that a system's estimate never depends on the batch
+        estimate = np.empty(len(parameter_index))
+        for rows, passes in ((warm, self.config.warm_passes), (~warm, self.config.passes)):
+            if np.any(rows):
+                estimate[rows] = self._search(parameter_index[rows], grids[rows], start[rows], u[rows], du[rows], ea[rows], passes)
+        return estimate
+
+    def _search(self, parameter_index, grids, start, u, du, ea, passes: int) -> np.ndarray:
+        """Grid search refined ``passes`` times; each pass narrows to one step either side of the best."""
         scale = np.maximum(ea, 1e-300)[:, None, :]
+        rows = np.arange(len(grids))
         for _ in range(passes):
             cost = (((self._candidate_ea(parameter_index, grids, start, u, du) - ea[:, None, :]) / scale) ** 2).sum(-1)
-            best = np.argmin(cost, axis=1)
             step = grids[:, 1] - grids[:, 0]
-            centre = grids[np.arange(n), best]
-            # the next grid spans one step either side of the best candidate, kept positive
+            centre = grids[rows, np.argmin(cost, axis=1)]
             grids = np.maximum(centre[:, None] + np.linspace(-1.0, 1.0, self.config.grid) * step[:, None], 1e-6 * grids[:, -1:])
         return centre
 

@@ -7,7 +7,15 @@ from ea_gym.env.costs import CostModel
 ENV_IDS = ("ea_gym/SpringMassDamper-v0", "ea_gym/BondGraphMaintenance-v0")
 
 if ENV_IDS[0] not in registry:
-    register(id=ENV_IDS[0], entry_point="ea_gym.env.maintenance:SpringMassDamperEnv")
-    register(id=ENV_IDS[1], entry_point="ea_gym.env.maintenance:BondGraphMaintenanceEnv")
+    register(
+        id=ENV_IDS[0],
+        entry_point="ea_gym.env.maintenance:SpringMassDamperEnv",
+        vector_entry_point="ea_gym.env.vector:SpringMassDamperVectorEnv",
+    )
+    register(
+        id=ENV_IDS[1],
+        entry_point="ea_gym.env.maintenance:BondGraphMaintenanceEnv",
+        vector_entry_point="ea_gym.env.vector:BondGraphMaintenanceVectorEnv",
+    )
 
 __all__ = ["ENV_IDS", "CostModel"]

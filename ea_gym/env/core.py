@@ -10,6 +10,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -24,6 +25,7 @@ from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for
 
 OBS_MODES = ("phm", "sensors", "oracle")
+COST_ITEMS = ("corrective", "replacement", "failure", "lost_production", "total")
 LOAD_COMPONENTS = 16
 
 
@@ -141,6 +143,11 @@ class MaintenanceCore:
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._corrective_speed = config.corrective_rate * (self.limits[:, 1] - self.limits[:, 0])
+        self.action_meanings = (
+            "carry on", *(f"corrective action on {c}" for c in self.components), *(f"replace {c}" for c in self.components)
+        )
+        self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
+        self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self._state: dict[str, np.ndarray] = {}
 
     # -- episode bookkeeping ------------------------------------------------------------------
@@ -211,7 +218,7 @@ class MaintenanceCore:
         if actions.shape != (self.n,) or not np.issubdtype(actions.dtype, np.integer) or np.any((actions < 0) | (actions >= n_actions)):
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
         s, c, dt = self._state, self.config.costs, self.config.step_seconds
-        costs = {key: np.zeros(self.n) for key in ("corrective", "replacement", "failure", "lost_production")}
+        costs = {key: np.zeros(self.n) for key in COST_ITEMS[:-1]}
         events: list[list[str]] = [[] for _ in range(self.n)]
         down = s["down"] > 0
         actions = np.where(down, 0, actions)  # a machine under replacement takes no orders
@@ -270,6 +277,26 @@ class MaintenanceCore:
             failed=failed,
             events=events,
         )
+
+    def info(self, result: StepResult, i: int) -> dict[str, Any]:
+        """The Gymnasium ``info`` of system i after a step."""
+        return {
+            "true_parameters": dict(zip(self.model.parameter_names, map(float, result.true_parameters[i]))),
+            "true_rul": float(result.true_rul[i]),
+            "cost": {key: float(value[i]) for key, value in result.costs.items()},
+            "failed": bool(result.failed[i]),
+            "events": list(result.events[i]),
+        }
+
+    def reset_info(self, i: int) -> dict[str, Any]:
+        """The Gymnasium ``info`` of system i after a reset: its true state, no cost, no event."""
+        return {
+            "true_parameters": dict(zip(self.model.parameter_names, map(float, self._state["theta"][i]))),
+            "true_rul": float(self._true_rul()[i]),
+            "cost": {key: 0.0 for key in COST_ITEMS},
+            "failed": False,
+            "events": [],
+        }
 
     def _replace(self, i: int, d: int, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[str]]) -> None:
         """Put a new component d in system i: nominal value, downtime, a new fault if it was the faulty one."""

@@ -118,32 +118,21 @@ class BondGraphMaintenanceEnv(gym.Env):
         classifier: FaultClassifier | str | None = None,
         render_mode: str | None = None,
     ):
-        if isinstance(system, str):
-            if system not in MODELS:
-                raise ValueError(f"system must be one of {sorted(MODELS)} or a SystemModel, got {system!r}")
-            system = get_model(system)
-        elif not isinstance(system, SystemModel):
-            raise TypeError(f"system must be a model name or a SystemModel, got {type(system).__name__}")
-        if obs_mode not in OBS_MODES:
-            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if isinstance(classifier, str):
-            classifier = FaultClassifier.load(classifier)
-        self.config = EnvConfig(
-            step_seconds=step_seconds, window_seconds=window_seconds, sample_rate=sample_rate, noise=noise,
-            horizon=horizon, obs_mode=obs_mode, costs=costs or CostModel(), wear=wear,
-            corrective_rate=corrective_rate, continue_after_failure=continue_after_failure, rul_max=rul_max,
+        self.core = build_core(
+            1, system=system, obs_mode=obs_mode, step_seconds=step_seconds, window_seconds=window_seconds, noise=noise,
+            horizon=horizon, costs=costs, wear=wear, corrective_rate=corrective_rate,
+            continue_after_failure=continue_after_failure, rul_max=rul_max, sample_rate=sample_rate, classifier=classifier,
         )
-        self.core = MaintenanceCore(system, self.config, 1, classifier)
-        self.model = system
+        self.config = self.core.config
+        self.model = self.core.model
         self.render_mode = render_mode
-        components = self.core.components
-        self.maintainable_components = components
+        self.maintainable_components = self.core.components
         self.diagnosis_classes = self.core.classes
-        self.action_meanings = ("carry on", *(f"corrective action on {c}" for c in components), *(f"replace {c}" for c in components))
-        self.nominal_parameters = dict(zip(system.parameter_names, map(float, system.parameter_vector())))
-        self.safe_limits = {name: tuple(map(float, limits)) for name, limits in system.safe_limits.items()}
+        self.action_meanings = self.core.action_meanings
+        self.nominal_parameters = self.core.nominal_parameters
+        self.safe_limits = self.core.safe_limits
         self.action_space = spaces.Discrete(len(self.action_meanings))
         self.observation_space = observation_space(self.core)
         self._history: list[dict[str, Any]] = []
@@ -152,33 +141,17 @@ class BondGraphMaintenanceEnv(gym.Env):
         super().reset(seed=seed)
         observation = self.core.reset([self.np_random])
         self._history = []
-        return _first(observation), self._info_at_reset()
+        return _first(observation), self.core.reset_info(0)
 
     def step(self, action):
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an int in [0, {self.action_space.n - 1}] ({self.action_meanings}), got {action!r}")
         result = self.core.step(np.array([int(action)]), [self.np_random])
         observation = _first(result.observation)
-        info = {
-            "true_parameters": dict(zip(self.model.parameter_names, map(float, result.true_parameters[0]))),
-            "true_rul": float(result.true_rul[0]),
-            "cost": {key: float(value[0]) for key, value in result.costs.items()},
-            "failed": bool(result.failed[0]),
-            "events": list(result.events[0]),
-        }
+        info = self.core.info(result, 0)
         self._history.append({"observation": observation, "info": info, "action": int(action)})
         del self._history[:-120]
         return observation, float(result.reward[0]), bool(result.terminated[0]), bool(result.truncated[0]), info
-
-    def _info_at_reset(self) -> dict[str, Any]:
-        theta = self.core._state["theta"][0]
-        return {
-            "true_parameters": dict(zip(self.model.parameter_names, map(float, theta))),
-            "true_rul": float(self.core._true_rul()[0]),
-            "cost": {key: 0.0 for key in ("corrective", "replacement", "failure", "lost_production", "total")},
-            "failed": False,
-            "events": [],
-        }
 
     def render(self):
         if self.render_mode is None:
@@ -196,6 +169,41 @@ class SpringMassDamperEnv(BondGraphMaintenanceEnv):
         if "system" in kwargs:
             raise TypeError("SpringMassDamper-v0 is the spring-mass-damper; use BondGraphMaintenance-v0 for another system")
         super().__init__(system="spring_mass_damper", **kwargs)
+
+
+def build_core(
+    n_systems: int,
+    system: str | SystemModel = "spring_mass_damper",
+    obs_mode: str = "phm",
+    step_seconds: float = 1.0,
+    window_seconds: float | None = None,
+    noise: float = 0.01,
+    horizon: int = 500,
+    costs: CostModel | None = None,
+    wear: dict[str, WearConfig] | None = None,
+    corrective_rate: float = 0.02,
+    continue_after_failure: bool = False,
+    rul_max: float = 1000.0,
+    sample_rate: float = 100.0,
+    classifier: FaultClassifier | str | None = None,
+) -> MaintenanceCore:
+    """The step core of N environments, from the environments' keyword arguments (checked)."""
+    if isinstance(system, str):
+        if system not in MODELS:
+            raise ValueError(f"system must be one of {sorted(MODELS)} or a SystemModel, got {system!r}")
+        system = get_model(system)
+    elif not isinstance(system, SystemModel):
+        raise TypeError(f"system must be a model name or a SystemModel, got {type(system).__name__}")
+    if obs_mode not in OBS_MODES:
+        raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
+    if isinstance(classifier, str):
+        classifier = FaultClassifier.load(classifier)
+    config = EnvConfig(
+        step_seconds=step_seconds, window_seconds=window_seconds, sample_rate=sample_rate, noise=noise,
+        horizon=horizon, obs_mode=obs_mode, costs=costs or CostModel(), wear=wear,
+        corrective_rate=corrective_rate, continue_after_failure=continue_after_failure, rul_max=rul_max,
+    )
+    return MaintenanceCore(system, config, n_systems, classifier)
 
 
 def observation_space(core: MaintenanceCore) -> spaces.Dict:
