@@ -24,6 +24,8 @@ def test_batched_episodes_equal_single_environment_episodes(mode):
     envs = [gym.make(ENV_ID, **kwargs) for _ in range(n)]
     observation, _ = venv.reset(seed=seed)
     singles = [env.reset(seed=seed + i)[0] for i, env in enumerate(envs)]
+    for i, single in enumerate(singles):
+        assert all(np.array_equal(observation[key][i], value) for key, value in single.items())
     rng = np.random.default_rng(0)
     ended = 0
     for _ in range(150):  # two autoresets at the 60-step horizon, and failures from random actions
