@@ -70,6 +70,25 @@ def _reproduce(args: argparse.Namespace) -> int:
     return 0
 
 
+def _train(args: argparse.Namespace) -> int:
+    from agents.training import TrainingRun, train
+
+    run = TrainingRun(
+        algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed,
+        vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
+    )
+    summary = train(run, Path(args.out), resume=None if args.resume is None else Path(args.resume), progress_bar=not args.no_progress)
+    print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
+    return 0
+
+
+def _positive_int(text: str) -> int:
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
+    return value
+
+
 def _positive_float(text: str) -> float:
     value = float(text)
     if not value > 0:
@@ -136,6 +155,30 @@ def build_parser() -> argparse.ArgumentParser:
     reproduce.add_argument("--classifier", metavar="PATH", default=None, help="load this isolation network instead of training one")
     reproduce.add_argument("--seed", type=int, default=0, help="seed of the database, training and sensor noise (default 0)")
     reproduce.set_defaults(run=_reproduce)
+
+    train = commands.add_parser(
+        "train",
+        help="train a maintenance policy with stable-baselines3 on the batched environment",
+        description=(
+            "Train PPO, A2C or DQN on ea_gym/SpringMassDamper-v0 (continue_after_failure=True) with normalised "
+            "observations and rewards. Writes DIR/model.zip, DIR/vecnormalize.pkl, DIR/training.json, the best "
+            "model on held-out validation seeds (DIR/best), checkpoints (DIR/checkpoints), evaluations and, when "
+            "tensorboard is installed, TensorBoard logs (DIR/tensorboard)."
+        ),
+    )
+    train.add_argument("--algo", choices=["ppo", "dqn", "a2c"], default="ppo", help="algorithm (default ppo)")
+    train.add_argument("--timesteps", type=_positive_int, default=200_000, help="environment steps (default 200000)")
+    train.add_argument("--obs-mode", choices=["phm", "sensors", "oracle"], default="phm", help="information regime (default phm)")
+    train.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    train.add_argument("--n-envs", type=_positive_int, default=16, help="parallel environments (default 16)")
+    train.add_argument("--vec-env", choices=["batched", "subproc"], default="batched",
+                       help="the native batched VecEnv (default) or a SubprocVecEnv of single environments")
+    train.add_argument("--seed", type=int, default=0, help="seed of the algorithm and of the training environments (default 0)")
+    train.add_argument("--eval-every", type=_positive_int, default=20_000, help="steps between evaluations (default 20000)")
+    train.add_argument("--checkpoint-every", type=_positive_int, default=50_000, help="steps between checkpoints (default 50000)")
+    train.add_argument("--resume", metavar="CHECKPOINT", default=None, help="continue from a checkpoint .zip (or a model.zip)")
+    train.add_argument("--no-progress", action="store_true", help="no progress bar")
+    train.set_defaults(run=_train)
     return parser
 
 
