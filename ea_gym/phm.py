@@ -278,7 +278,8 @@ class PHMChain:
         """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).
 
         After an alarm every degradable parameter is estimated at every step (each as if it alone were
-        faulty), so that whichever the isolation settles on has a full history to extrapolate.
+        faulty) until the isolation names a suspect; from then on the suspect alone, and the others keep
+        their last value.
         """
         s = self.state
         D = len(self.degradable)
@@ -286,8 +287,9 @@ class PHMChain:
         ready = (s["steps"] >= self.estimate_steps) & s["alarm"]
         if not np.any(ready):
             return s["estimates"].copy()
-        rows = np.repeat(np.flatnonzero(ready), D)
-        columns = np.tile(np.arange(D), int(ready.sum()))
+        # every parameter until the isolation has a suspect, then the suspect alone
+        chosen = np.where(s["isolated"][:, None] > 0, np.arange(D) == s["isolated"][:, None] - 1, True) & ready[:, None]
+        rows, columns = np.nonzero(chosen)
         c = self.monitor.config.smoothing
         signals, load = s["signals"][rows], s["load"][rows][..., c:]
         start = self.monitor.state_filter(signals[..., : 2 * c + 1])[..., c]

@@ -161,14 +161,15 @@ class Monitor:
         model's equations and the nominal energy balance holds exactly in a fault-free run.
         """
         smooth = self.filter(signals)[..., start:]
-        slope = self.filter(signals, deriv=1)[..., start:]
+        inertia_channels = [j for j, _ in self._inertance.values()]
+        slope = self.filter(signals[..., inertia_channels, :], deriv=1)[..., start:]  # only I laws differentiate
         u = smooth[..., -1, :]
         states = smooth[..., :-1, :] * self._to_state[:, None]
         bonds = np.einsum("bs,...st->...bt", self._Cy, states) + self._Dy[:, 0][:, None] * u[..., None, :]
         effort, flow = self.model.state_space.element_signals(np.moveaxis(bonds, -2, -1))
         power = {name: effort[name] * flow[name] for name in effort}
-        for name, (j, inertance) in self._inertance.items():
-            power[name] = inertance * smooth[..., j, :] * slope[..., j, :]
+        for k, (name, (j, inertance)) in enumerate(self._inertance.items()):
+            power[name] = inertance * smooth[..., j, :] * slope[..., k, :]
         return np.stack([power[name] for name in self.elements], axis=-2), smooth
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray) -> MonitorWindow:
