@@ -60,6 +60,8 @@ class PHMConfig:
         noise: sensor noise, fraction of each measured signal's RMS over a step.
         frame: isolation frame (s); must equal the frame the classifier was trained on.
         isolation_smoothing: weight of the newest frame in the running average of class probabilities.
+        isolation_confidence: belief in the suspect above which only the suspect's parameter is
+            estimated (below it, every degradable parameter is, so that a change of suspect finds a history).
     """
 
     step: float = 1.0
@@ -68,6 +70,7 @@ class PHMConfig:
     noise: float = 0.0
     frame: float = 20.0
     isolation_smoothing: float = 0.2
+    isolation_confidence: float = 0.9
     monitor: MonitorConfig = field(default_factory=MonitorConfig)
     detector: DetectorConfig = field(default_factory=DetectorConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
@@ -268,7 +271,11 @@ class PHMChain:
         weight = self.config.isolation_smoothing
         s["probability_average"][counted] += weight * (probabilities[counted] - s["probability_average"][counted])
         fault_scores = s["probability_average"][:, 1:]
-        s["isolated"] = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
+        isolated = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
+        # a new suspect's old estimates are stale (it was not estimated meanwhile): start it afresh
+        changed = np.flatnonzero((isolated != s["isolated"]) & (isolated > 0))
+        s["raw"][changed, isolated[changed] - 1] = np.nan
+        s["isolated"] = isolated
         total = s["probability_average"].sum(1, keepdims=True)
         none = np.eye(len(self.classes))[0]
         diagnosis = np.where(total > 0, s["probability_average"] / np.where(total > 0, total, 1.0), none)
@@ -278,8 +285,8 @@ class PHMChain:
         """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).
 
         After an alarm every degradable parameter is estimated at every step (each as if it alone were
-        faulty) until the isolation names a suspect; from then on the suspect alone, and the others keep
-        their last value.
+        faulty) until the isolation is confident of a suspect; from then on the suspect alone, and the
+        others keep their last value.
         """
         s = self.state
         D = len(self.degradable)
@@ -287,8 +294,10 @@ class PHMChain:
         ready = (s["steps"] >= self.estimate_steps) & s["alarm"]
         if not np.any(ready):
             return s["estimates"].copy()
-        # every parameter until the isolation has a suspect, then the suspect alone
-        chosen = np.where(s["isolated"][:, None] > 0, np.arange(D) == s["isolated"][:, None] - 1, True) & ready[:, None]
+        # every parameter until the isolation is confident of a suspect, then the suspect alone
+        belief = s["probability_average"][np.arange(self.n), s["isolated"]] / np.maximum(s["probability_average"].sum(1), 1e-300)
+        confident = (s["isolated"] > 0) & (belief >= self.config.isolation_confidence)
+        chosen = np.where(confident[:, None], np.arange(D) == s["isolated"][:, None] - 1, True) & ready[:, None]
         rows, columns = np.nonzero(chosen)
         c = self.monitor.config.smoothing
         signals, load = s["signals"][rows], s["load"][rows][..., c:]
