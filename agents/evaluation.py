@@ -1,0 +1,243 @@
+"""Evaluate a maintenance policy over seeded episodes, and tune a policy parameter by grid search.
+
+``evaluate(policy, env_factory, seeds)`` builds one environment with ``env_factory()`` and runs one
+episode per seed (``env.reset(seed=seed)``) to its end (termination or truncation), calling
+``policy.predict(observation, state=state, episode_start=...)`` like an SB3 model. Per episode it records:
+
+- ``cost``: the summed ``info["cost"]["total"]`` (= minus the summed reward), and each item of the
+  breakdown summed (``cost_corrective``, ``cost_replacement``, ``cost_failure``, ``cost_lost_production``);
+- ``failures``: steps with ``info["failed"]``;
+- ``availability``: fraction of the episode's steps the machine was up. A step is down when the machine
+  was down at its start (``observation["maintenance_in_progress"]`` before the step) or a replacement
+  (ordered or forced by a failure) happened in it. With downtimes >= 1 step (the defaults) these are
+  exactly the steps that cost lost production; with a downtime of 0 the replacement step still counts
+  as down;
+- ``maintenance_actions``: non-zero actions carried out (given while the machine was up), split into
+  ``replacements`` and ``corrective_steps``; ``ignored_actions``: non-zero actions given while it was
+  down (the environment ignores them);
+- ``steps``.
+
+The 95 % confidence interval of the mean cost is the normal approximation mean ± 1.96 s / sqrt(n)
+(s the sample standard deviation, ddof = 1): no bootstrap, no randomness in the statistics; it is NaN
+(None in ``to_dict``) for fewer than 2 episodes.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+__all__ = ["EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_ITEMS"]
+
+COST_ITEMS = ("corrective", "replacement", "failure", "lost_production")
+_FIELDS = (
+    "cost", "failures", "availability", "maintenance_actions", "replacements", "corrective_steps",
+    "ignored_actions", "steps", *(f"cost_{item}" for item in COST_ITEMS),
+)
+
+
+def mean_ci95(values: Sequence[float] | np.ndarray) -> tuple[float, float, float]:
+    """(mean, low, high): normal approximation mean ± 1.96 sd / sqrt(n), sd with ddof = 1; NaN bounds if n < 2."""
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        raise ValueError("no values")
+    mean = float(values.mean())
+    if values.size < 2:
+        return mean, math.nan, math.nan
+    half = 1.96 * float(values.std(ddof=1)) / math.sqrt(values.size)
+    return mean, mean - half, mean + half
+
+
+def _json_number(value: float) -> float | None:
+    return float(value) if math.isfinite(value) else None
+
+
+@dataclass
+class EpisodeStats:
+    """Per-episode records of one policy and their summaries.
+
+    Attributes:
+        seeds: the reset seed of each episode.
+        per_episode: name -> array over episodes (see the module docstring for the names).
+        policy: the policy's repr.
+    """
+
+    seeds: np.ndarray
+    per_episode: dict[str, np.ndarray]
+    policy: str = ""
+    ci_method: str = field(default="normal approximation: mean +- 1.96 sd / sqrt(n), sd with ddof=1")
+
+    @property
+    def n(self) -> int:
+        return len(self.seeds)
+
+    @property
+    def mean_cost(self) -> float:
+        return float(np.mean(self.per_episode["cost"]))
+
+    @property
+    def ci95(self) -> tuple[float, float]:
+        """95 % confidence interval of the mean cost (normal approximation)."""
+        _, low, high = mean_ci95(self.per_episode["cost"])
+        return low, high
+
+    @property
+    def failures(self) -> float:
+        """Mean failures per episode."""
+        return float(np.mean(self.per_episode["failures"]))
+
+    @property
+    def availability(self) -> float:
+        """Mean over episodes of the fraction of steps up."""
+        return float(np.mean(self.per_episode["availability"]))
+
+    @property
+    def maintenance_actions(self) -> float:
+        """Mean non-zero actions carried out per episode."""
+        return float(np.mean(self.per_episode["maintenance_actions"]))
+
+    @property
+    def cost_breakdown(self) -> dict[str, float]:
+        """Mean cost per episode of each item."""
+        return {item: float(np.mean(self.per_episode[f"cost_{item}"])) for item in COST_ITEMS}
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary and per-episode lists (non-finite numbers as None)."""
+        low, high = self.ci95
+        return {
+            "policy": self.policy,
+            "episodes": self.n,
+            "mean_cost": self.mean_cost,
+            "ci95": [_json_number(low), _json_number(high)],
+            "ci_method": self.ci_method,
+            "failures": self.failures,
+            "availability": self.availability,
+            "maintenance_actions": self.maintenance_actions,
+            "replacements": float(np.mean(self.per_episode["replacements"])),
+            "corrective_steps": float(np.mean(self.per_episode["corrective_steps"])),
+            "cost_breakdown": self.cost_breakdown,
+            "seeds": [int(s) for s in self.seeds],
+            "per_episode": {key: [_json_number(v) for v in np.asarray(values, dtype=float)] for key, values in self.per_episode.items()},
+        }
+
+
+def _episode(policy: Any, env: Any, seed: int) -> dict[str, float]:
+    observation, _ = env.reset(seed=seed)
+    meanings = tuple(getattr(env.unwrapped, "action_meanings", ()))
+    record = dict.fromkeys(_FIELDS, 0.0)
+    state, start, down_steps = None, True, 0
+    while True:
+        action, state = policy.predict(observation, state=state, episode_start=np.array([start]), deterministic=True)
+        start = False
+        action = np.asarray(action)
+        if action.size != 1:
+            raise ValueError(f"the policy must return one action for one observation, got shape {action.shape}")
+        action = int(action.reshape(-1)[0])
+        was_down = bool(np.asarray(observation["maintenance_in_progress"]).reshape(-1)[0] > 0.5)
+        observation, _, terminated, truncated, info = env.step(action)
+        record["steps"] += 1
+        record["cost"] += info["cost"]["total"]
+        for item in COST_ITEMS:
+            record[f"cost_{item}"] += info["cost"][item]
+        record["failures"] += bool(info["failed"])
+        if was_down or any(event.startswith("replacement of") for event in info["events"]):
+            down_steps += 1
+        if action != 0:
+            if was_down:
+                record["ignored_actions"] += 1
+            else:
+                record["maintenance_actions"] += 1
+                meaning = meanings[action] if action < len(meanings) else ""
+                if meaning.startswith("replace "):
+                    record["replacements"] += 1
+                elif meaning.startswith("corrective action on "):
+                    record["corrective_steps"] += 1
+        if terminated or truncated:
+            break
+    record["availability"] = 1.0 - down_steps / record["steps"]
+    return record
+
+
+def evaluate(
+    policy: Any,
+    env_factory: Callable[[], Any],
+    seeds: Iterable[int],
+    progress: bool = True,
+    description: str | None = None,
+) -> EpisodeStats:
+    """Run one episode per seed and record its numbers.
+
+    Args:
+        policy: anything with SB3's ``predict`` (a rule of ``agents.policies`` or an SB3 model), or a
+            callable ``policy(env) -> policy`` that builds it from the environment made here.
+        env_factory: ``() -> env``, e.g. ``lambda: gym.make("ea_gym/SpringMassDamper-v0", ...)``; called
+            once, the environment is reset with each seed and closed at the end.
+        seeds: one episode per seed, in order.
+        progress: show a tqdm progress bar over the episodes.
+        description: the progress bar's label (default the policy's repr).
+    """
+    seeds = np.array([int(s) for s in seeds], dtype=np.int64)
+    if seeds.size == 0:
+        raise ValueError("seeds must hold at least one seed")
+    env = env_factory()
+    try:
+        if not hasattr(policy, "predict"):
+            if not callable(policy):
+                raise TypeError(f"policy must have a predict method or be a callable env -> policy, got {type(policy).__name__}")
+            policy = policy(env)
+        if hasattr(policy, "reset"):
+            policy.reset()
+        from tqdm.auto import tqdm
+
+        records = [
+            _episode(policy, env, int(seed))
+            for seed in tqdm(seeds, desc=description or repr(policy), disable=not progress, leave=False)
+        ]
+    finally:
+        env.close()
+    per_episode = {key: np.array([r[key] for r in records], dtype=float) for key in _FIELDS}
+    return EpisodeStats(seeds=seeds, per_episode=per_episode, policy=repr(policy))
+
+
+def tune(
+    policy_factory: Callable[[Any], Any],
+    grid: Sequence[Any],
+    env_factory: Callable[[], Any],
+    seeds: Iterable[int],
+    progress: bool = True,
+) -> tuple[Any, list[dict[str, Any]]]:
+    """Grid search of one policy parameter on (training) seeds: the value of least mean cost.
+
+    Args:
+        policy_factory: ``parameter -> policy`` (or ``parameter -> (env -> policy)``, see ``evaluate``).
+        grid: the parameter values tried, in order; ties go to the earlier one.
+        env_factory, seeds, progress: as in ``evaluate`` (the same seeds for every value).
+
+    Returns:
+        (best parameter, table): one JSON-ready row per value with ``parameter``, ``mean_cost``,
+        ``ci95``, ``failures``, ``availability``, ``maintenance_actions``, ``cost_breakdown``.
+    """
+    grid = list(grid)
+    if not grid:
+        raise ValueError("grid must hold at least one value")
+    seeds = list(seeds)
+    table = []
+    for parameter in grid:
+        stats = evaluate(policy_factory(parameter), env_factory, seeds, progress, description=f"tune {parameter!r}")
+        low, high = stats.ci95
+        table.append({
+            "parameter": parameter,
+            "policy": stats.policy,
+            "mean_cost": stats.mean_cost,
+            "ci95": [_json_number(low), _json_number(high)],
+            "failures": stats.failures,
+            "availability": stats.availability,
+            "maintenance_actions": stats.maintenance_actions,
+            "cost_breakdown": stats.cost_breakdown,
+        })
+    best = min(range(len(grid)), key=lambda i: table[i]["mean_cost"])
+    return grid[best], table

@@ -1,0 +1,346 @@
+"""Rule-based maintenance policies for ``BondGraphMaintenanceEnv``, with stable-baselines3's interface.
+
+Every policy has ``predict(observation, state=None, episode_start=None, deterministic=True) ->
+(actions, state)``, like an SB3 model, so that the same evaluation loop (``agents.evaluation.evaluate``
+or SB3's ``evaluate_policy``) runs rules and learned agents alike:
+
+- a single observation (a dict of arrays as ``env.step`` returns it, ``time_since_maintenance`` of
+  shape (1,)) gives an action array of shape ();
+- a batched observation (a dict whose arrays have a leading axis of n_envs, as a VecEnv returns it,
+  ``time_since_maintenance`` of shape (n_envs, 1)) gives an action array of shape (n_envs,).
+
+``deterministic`` is accepted and ignored (the rules are deterministic). ``episode_start`` (bool per
+env) clears a policy's per-episode memory (only ``Periodic`` has one). The returned ``state`` is None
+except for ``Periodic`` (see there).
+
+Every policy carries on (action 0) while the machine is down (``maintenance_in_progress``), since the
+environment ignores orders then anyway; so every non-zero action a policy returns is carried out.
+
+Policies are built from the environment (a gymnasium env, wrapped or not, an SB3 ``VecEnv`` or a
+gymnasium vector env) or from an ``ActionMap``, which says which action index is the corrective action
+or the replacement of which component. Given an observation without a key it needs, a policy raises
+``ValueError`` naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+__all__ = ["ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle"]
+
+
+@dataclass(frozen=True)
+class ActionMap:
+    """The environment's action indices by meaning.
+
+    Attributes:
+        action_meanings: ``env.unwrapped.action_meanings``: "carry on", then "corrective action on
+            <c>" and "replace <c>" for each maintainable component c.
+        components: ``env.unwrapped.maintainable_components``.
+        diagnosis_classes: ``env.unwrapped.diagnosis_classes``: "none", then components.
+        obs_mode: the environment's observation mode ("phm", "sensors", "oracle"), None if unknown.
+    """
+
+    action_meanings: tuple[str, ...]
+    components: tuple[str, ...]
+    diagnosis_classes: tuple[str, ...]
+    obs_mode: str | None = None
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "action_meanings", tuple(self.action_meanings))
+        object.__setattr__(self, "components", tuple(self.components))
+        object.__setattr__(self, "diagnosis_classes", tuple(self.diagnosis_classes))
+        if not self.action_meanings or self.action_meanings[0] != "carry on":
+            raise ValueError(f"action 0 must be 'carry on', got action meanings {self.action_meanings}")
+        if not self.diagnosis_classes or self.diagnosis_classes[0] != "none":
+            raise ValueError(f"diagnosis class 0 must be 'none', got {self.diagnosis_classes}")
+        for c in self.components:
+            self.replace(c)
+            self.corrective(c)
+        unknown = [c for c in self.diagnosis_classes[1:] if c not in self.components]
+        if unknown:
+            raise ValueError(f"diagnosis classes {unknown} are not maintainable components {self.components}")
+
+    def _index(self, meaning: str) -> int:
+        try:
+            return self.action_meanings.index(meaning)
+        except ValueError:
+            raise ValueError(f"no action {meaning!r} among {self.action_meanings}") from None
+
+    def replace(self, component: str) -> int:
+        """Index of the action "replace <component>"."""
+        return self._index(f"replace {component}")
+
+    def corrective(self, component: str) -> int:
+        """Index of the action "corrective action on <component>"."""
+        return self._index(f"corrective action on {component}")
+
+    @classmethod
+    def from_env(cls, env: Any) -> ActionMap:
+        """From a gymnasium env (wrapped or not), an SB3 VecEnv or a gymnasium vector env."""
+        if isinstance(env, ActionMap):
+            return env
+        base = getattr(env, "unwrapped", env)
+        names = ("action_meanings", "maintainable_components", "diagnosis_classes")
+        if all(hasattr(base, name) for name in names):
+            values = [getattr(base, name) for name in names]
+            config = getattr(base, "config", None)
+        elif hasattr(env, "get_attr"):  # vectorised environments: ask the first one
+            try:
+                values = [_first_attr(env, name) for name in names]
+            except Exception as error:  # re-raised with the reason
+                raise TypeError(f"cannot read {names} from {type(env).__name__}: {error}") from error
+            try:
+                config = _first_attr(env, "config")
+            except Exception:  # the mode is optional
+                config = None
+        else:
+            raise TypeError(
+                f"need a BondGraphMaintenanceEnv (or a wrapper / vector env of one) or an ActionMap, got {type(env).__name__}"
+            )
+        return cls(*values, obs_mode=getattr(config, "obs_mode", None))
+
+
+def _first_attr(env: Any, name: str) -> Any:
+    values = env.get_attr(name)
+    return values[0]
+
+
+def _need(observation: Any, keys: Sequence[str], who: str, hint: str = "") -> tuple[dict[str, np.ndarray], bool]:
+    """The observation's ``keys`` as float arrays with a leading env axis, and whether it was batched.
+
+    Batching is told by ``time_since_maintenance``: shape (1,) is one observation, (n_envs, 1) a batch.
+    """
+    if not isinstance(observation, Mapping):
+        raise TypeError(f"{who} needs a Dict observation (a mapping of arrays), got {type(observation).__name__}")
+    for key in ("time_since_maintenance", *keys):
+        if key not in observation:
+            raise ValueError(
+                f"{who} needs observation key {key!r}{hint}; the observation has keys {sorted(observation)}"
+            )
+    clock = np.asarray(observation["time_since_maintenance"])
+    if clock.ndim == 1 and clock.shape == (1,):
+        batched, n = False, 1
+    elif clock.ndim == 2 and clock.shape[1] == 1:
+        batched, n = True, clock.shape[0]
+    else:
+        raise ValueError(
+            "observation key 'time_since_maintenance' must have shape (1,) (one observation) or "
+            f"(n_envs, 1) (a batch), got {clock.shape}"
+        )
+    out = {}
+    for key in dict.fromkeys(("time_since_maintenance", *keys)):
+        value = np.asarray(observation[key], dtype=float)
+        if not batched:
+            value = value[None]
+        if value.ndim != 2 or value.shape[0] != n:
+            expected = f"({n}, ...)" if batched else "(d,)"
+            raise ValueError(f"observation key {key!r} must have shape {expected}, got {np.shape(observation[key])}")
+        out[key] = value
+    return out, batched
+
+
+def _output(actions: np.ndarray, batched: bool) -> np.ndarray:
+    actions = np.asarray(actions, dtype=np.int64)
+    return actions if batched else actions.reshape(())
+
+
+def _starts(episode_start: Any, n: int) -> np.ndarray:
+    if episode_start is None:
+        return np.zeros(n, dtype=bool)
+    starts = np.asarray(episode_start, dtype=bool).reshape(-1)
+    if starts.size == 1 and n > 1:
+        starts = np.repeat(starts, n)
+    if starts.shape != (n,):
+        raise ValueError(f"episode_start must hold one bool per env ({n}), got shape {np.shape(episode_start)}")
+    return starts
+
+
+class RulePolicy:
+    """Base class: SB3-style ``predict`` over single or batched observations."""
+
+    #: observation keys the rule reads (besides ``time_since_maintenance``, always needed for batching)
+    needs: tuple[str, ...] = ()
+    hint: str = ""
+
+    def predict(
+        self,
+        observation: Mapping[str, Any],
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """Actions for the observation: shape () for one observation, (n_envs,) for a batch."""
+        obs, batched = _need(observation, self.needs, type(self).__name__, self.hint)
+        n = obs["time_since_maintenance"].shape[0]
+        actions, state = self._act(obs, n, state, _starts(episode_start, n))
+        return _output(actions, batched), state
+
+    def reset(self) -> None:
+        """Forget any per-episode memory (same as passing ``episode_start=True``)."""
+
+    def _act(self, obs: dict[str, np.ndarray], n: int, state: Any, starts: np.ndarray) -> tuple[np.ndarray, Any]:
+        raise NotImplementedError
+
+
+class RunToFailure(RulePolicy):
+    """Always carry on (action 0): no maintenance until a component fails.
+
+    With ``continue_after_failure=True`` the environment then forces the replacement of the failed
+    component (``costs.failure`` plus ``costs.failure_downtime`` steps down) and the episode goes on;
+    otherwise the failure ends the episode. ``env`` is accepted for a uniform signature and unused.
+    """
+
+    def __init__(self, env: Any = None):
+        pass
+
+    def _act(self, obs, n, state, starts):
+        return np.zeros(n, dtype=np.int64), None
+
+    def __repr__(self) -> str:
+        return "RunToFailure()"
+
+
+class Periodic(RulePolicy):
+    """Block replacement by age: when ``time_since_maintenance`` reaches ``period`` seconds, replace
+    every component in ``components`` (default all maintainable ones), one after the other.
+
+    It reads no PHM output (it works in every obs_mode, ``"sensors"`` included): only
+    ``time_since_maintenance`` and ``maintenance_in_progress``. A replacement resets the environment's
+    ``time_since_maintenance`` and stops the machine for ``costs.replace_downtime`` steps, during which
+    orders are ignored; so a round is a sequence: replace the first component, wait while the machine is
+    down, replace the next, and so on. A failure (which also resets ``time_since_maintenance``) in the
+    middle of a round does not stop it. The next round starts ``period`` s after the last maintenance.
+
+    Memory: the position in the current round, per env, as an int array of shape (n_envs,) (n_envs = 1
+    for a single observation): -1 when no round is in progress, else the index in ``components`` of the
+    next component to replace. It is returned as ``state``; a ``state`` passed back in (as SB3's
+    ``evaluate_policy`` does) is used, and with ``state=None`` the policy uses its own copy of the last
+    state it returned (so a plain loop that drops the state works too, for one env or one VecEnv at a
+    time). ``episode_start`` True for an env (or ``reset()``) ends its round.
+
+    Args:
+        env: the environment (or an ActionMap).
+        period: seconds of ``time_since_maintenance`` between rounds, > 0.
+        components: the components replaced in each round, in order; default all maintainable ones.
+    """
+
+    needs = ("maintenance_in_progress",)
+
+    def __init__(self, env: Any, period: float, components: Sequence[str] | None = None):
+        if not (isinstance(period, (int, float)) and math.isfinite(period) and period > 0):
+            raise ValueError(f"period must be a positive number of seconds, got {period!r}")
+        self.actions = ActionMap.from_env(env)
+        self.period = float(period)
+        self.components = tuple(self.actions.components if components is None else components)
+        if not self.components:
+            raise ValueError("components must name at least one maintainable component")
+        self._round = np.array([self.actions.replace(c) for c in self.components], dtype=np.int64)
+        self._position: np.ndarray | None = None
+
+    def reset(self) -> None:
+        self._position = None
+
+    def _act(self, obs, n, state, starts):
+        if state is not None:
+            position = np.array(state, dtype=np.int64).reshape(-1)
+            if position.shape != (n,):
+                raise ValueError(f"Periodic: state must be an int array of shape ({n},), got shape {np.shape(state)}")
+        elif self._position is not None and self._position.shape == (n,):
+            position = self._position.copy()
+        else:
+            position = np.full(n, -1, dtype=np.int64)
+        position[starts] = -1
+        if np.any((position < -1) | (position >= len(self._round))):
+            raise ValueError(f"Periodic: state values must be in [-1, {len(self._round) - 1}], got {position}")
+        down = obs["maintenance_in_progress"][:, 0] > 0.5
+        due = obs["time_since_maintenance"][:, 0] >= self.period
+        position = np.where(~down & (position < 0) & due, 0, position)  # a new round
+        act = ~down & (position >= 0)
+        actions = np.where(act, self._round[np.clip(position, 0, None)], 0)
+        position = np.where(act, position + 1, position)
+        position = np.where(position >= len(self._round), -1, position)
+        self._position = position.copy()
+        return actions, position
+
+    def __repr__(self) -> str:
+        return f"Periodic(period={self.period:g}, components={self.components})"
+
+
+class RulThreshold(RulePolicy):
+    """Condition-based maintenance on the PHM outputs: when the RUL interval's lower bound
+    (``observation["rul"][1]``, s) is below ``threshold`` and the diagnosis names a component (the
+    argmax of ``observation["diagnosis"]`` is not "none"), replace that component (``action="replace"``)
+    or apply a corrective action on it for this step (``action="corrective"``); otherwise carry on.
+
+    ``threshold=math.inf`` acts as soon as a component is diagnosed, whatever its RUL. Needs the keys
+    ``diagnosis`` and ``rul``: obs_mode ``"phm"`` (estimated) or ``"oracle"`` (true; see ``Oracle``).
+
+    Args:
+        env: the environment (or an ActionMap). An env with obs_mode "sensors" is refused.
+        threshold: seconds, > 0 (inf allowed).
+        action: "replace" or "corrective".
+    """
+
+    needs = ("maintenance_in_progress", "diagnosis", "rul")
+    hint = " (make the env with obs_mode='phm' or 'oracle'; 'sensors' has no diagnosis or RUL)"
+
+    def __init__(self, env: Any, threshold: float, action: str = "replace"):
+        if not (isinstance(threshold, (int, float)) and not math.isnan(threshold) and threshold > 0):
+            raise ValueError(f"threshold must be a positive number of seconds (inf allowed), got {threshold!r}")
+        if action not in ("replace", "corrective"):
+            raise ValueError(f"action must be 'replace' or 'corrective', got {action!r}")
+        self.actions = ActionMap.from_env(env)
+        self._check_mode(self.actions.obs_mode)
+        self.threshold = float(threshold)
+        self.action = action
+        order = self.actions.replace if action == "replace" else self.actions.corrective
+        self._class_action = np.array([0] + [order(c) for c in self.actions.diagnosis_classes[1:]], dtype=np.int64)
+
+    def _check_mode(self, mode: str | None) -> None:
+        if mode == "sensors":
+            raise ValueError(
+                f"{type(self).__name__} reads the diagnosis and the RUL, which obs_mode 'sensors' does not give; "
+                "make the env with obs_mode='phm' (or 'oracle')"
+            )
+
+    def _act(self, obs, n, state, starts):
+        diagnosis, rul = obs["diagnosis"], obs["rul"]
+        classes = len(self.actions.diagnosis_classes)
+        if diagnosis.shape[1] != classes:
+            raise ValueError(
+                f"observation key 'diagnosis' has {diagnosis.shape[1]} classes, expected {classes} "
+                f"{self.actions.diagnosis_classes}"
+            )
+        if rul.shape[1] != 3:
+            raise ValueError(f"observation key 'rul' must hold [point, low, high], got {rul.shape[1]} values")
+        named = np.argmax(diagnosis, axis=1)
+        down = obs["maintenance_in_progress"][:, 0] > 0.5
+        act = ~down & (named > 0) & (rul[:, 1] < self.threshold)
+        return np.where(act, self._class_action[named], 0), None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(threshold={self.threshold:g}, action={self.action!r})"
+
+
+class Oracle(RulThreshold):
+    """``RulThreshold``'s rule on the true state: MUST be paired with ``obs_mode="oracle"``, whose
+    ``diagnosis`` is the one-hot of the truly degrading component (once its fault has arrived) and whose
+    ``rul`` is the true RUL (three times). The reference lower bound of a condition-based policy: what
+    a perfect PHM chain would allow.
+
+    Built from an env whose obs_mode is known, it refuses any mode but "oracle"; built from an
+    ActionMap without obs_mode, the pairing is the caller's responsibility (the observation keys are the
+    same as in "phm").
+    """
+
+    hint = " (make the env with obs_mode='oracle')"
+
+    def _check_mode(self, mode: str | None) -> None:
+        if mode is not None and mode != "oracle":
+            raise ValueError(f"Oracle reads the true faulty component and RUL: make the env with obs_mode='oracle', not {mode!r}")
