@@ -22,11 +22,26 @@ from ea_gym.diagnosis.monitor import Monitor, add_sensor_noise
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.env.costs import CostModel
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for
+from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
 
 OBS_MODES = ("phm", "sensors", "oracle")
 COST_ITEMS = ("corrective", "replacement", "failure", "lost_production", "total")
 LOAD_COMPONENTS = 16
+
+
+_THRESHOLDS: dict[tuple, np.ndarray] = {}
+
+
+def _calibrated_thresholds(model: SystemModel, config: PHMConfig, seed: int) -> np.ndarray:
+    """Detection thresholds, calibrated once per process for a model, chain settings and seed.
+
+    The calibration is deterministic; without the cache, every one of a thousand single environments
+    (in a SyncVectorEnv, say) would repeat it.
+    """
+    key = (model.name, model.parameter_vector().tobytes(), tuple(sorted(model.safe_limits.items())), config, seed)
+    if key not in _THRESHOLDS:
+        _THRESHOLDS[key] = calibrate_thresholds(model, config, np.random.default_rng(seed))
+    return _THRESHOLDS[key].copy()
 
 
 @dataclass(frozen=True)
@@ -132,14 +147,14 @@ class MaintenanceCore:
         self.wear = Wear(
             self.nominal[self._wearing_index], np.array([model.safe_limits[c] for c in wearing]), [wear[c] for c in wearing], n_systems
         )
-        self.monitor = Monitor(model, self.h, PHMConfig().monitor, n_systems)
         self.chain: PHMChain | None = None
         if config.obs_mode == "phm":
             if classifier is None:
                 classifier = classifier_for(model, np.random.default_rng(calibration_seed))
             phm_config = PHMConfig(step=config.window, step_time=config.step_seconds, sample_rate=config.sample_rate, noise=config.noise)
-            self.chain = build_chain(model, phm_config, classifier, np.random.default_rng(calibration_seed), n_systems)
-            self.monitor = self.chain.monitor
+            thresholds = _calibrated_thresholds(model, phm_config, calibration_seed)
+            self.chain = PHMChain(model, classifier, thresholds, phm_config, n_systems)
+        self.monitor = self.chain.monitor if self.chain is not None else Monitor(model, self.h, PHMConfig().monitor, n_systems)
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._corrective_speed = config.corrective_rate * (self.limits[:, 1] - self.limits[:, 0])
