@@ -25,6 +25,7 @@ from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecNormalize
 import ea_gym  # noqa: F401 - registers the environments
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_json
+from ea_gym.threads import single_threaded_torch
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "a2c": A2C, "dqn": DQN}
 ENV_ID = "ea_gym/SpringMassDamper-v0"
@@ -110,7 +111,9 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
                            name_prefix=run.algo, save_vecnormalize=True),
     ])
     started = time.perf_counter()
-    model.learn(total_timesteps=run.timesteps, callback=callbacks, progress_bar=progress_bar, reset_num_timesteps=resume is None)
+    # the environments' numpy shares the process: a second torch thread fights its BLAS threads (20x slower here)
+    with single_threaded_torch():
+        model.learn(total_timesteps=run.timesteps, callback=callbacks, progress_bar=progress_bar, reset_num_timesteps=resume is None)
     wall = time.perf_counter() - started
     model.save(str(out / MODEL_FILE))
     env.save(str(out / NORMALIZATION_FILE))

@@ -113,7 +113,7 @@ class FaultClassifier:
 
     def predict_proba(self, features: np.ndarray) -> np.ndarray:
         """Class probabilities, (n, n_classes)."""
-        with torch.no_grad(), single_threaded_torch():
+        with torch.no_grad():
             return torch.softmax(self.network(self._inputs(features)), dim=1).numpy()
 
     def save(self, path: str | os.PathLike[str]) -> Path:

@@ -23,6 +23,7 @@ from ea_gym.energy import activity_index, window_samples
 from ea_gym.env.costs import CostModel
 from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
+from ea_gym.threads import single_threaded_blas
 
 OBS_MODES = ("phm", "sensors", "oracle")
 COST_ITEMS = ("corrective", "replacement", "failure", "lost_production", "total")
@@ -228,6 +229,11 @@ class MaintenanceCore:
 
     def step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
         """Advance every system by one step under ``actions`` (N,) in [0, 2 n_components]."""
+        # small arrays throughout: one BLAS thread, which also leaves the other core to the learner's torch
+        with single_threaded_blas():
+            return self._step(actions, rngs)
+
+    def _step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
         actions = np.asarray(actions)
         n_actions = 1 + 2 * len(self.components)
         if actions.shape != (self.n,) or not np.issubdtype(actions.dtype, np.integer) or np.any((actions < 0) | (actions >= n_actions)):
