@@ -20,7 +20,7 @@ import gymnasium as gym
 from stable_baselines3 import A2C, DQN, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
-from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecNormalize
+from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 import ea_gym  # noqa: F401 - registers the environments
 from ea_gym.env.sb3 import MaintenanceVecEnv
@@ -64,7 +64,7 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
     else:
         raise ValueError(f"vec_env must be 'batched' or 'subproc', got {kind!r}")
     env.seed(seed)
-    return env
+    return VecMonitor(env)  # episode returns and lengths for the logs and the evaluation callback
 
 
 def default_hyperparameters(algo: str, n_envs: int) -> dict[str, Any]:

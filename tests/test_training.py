@@ -1,0 +1,59 @@
+"""A tiny training run saves a model that reloads, predicts valid actions and resumes."""
+
+import json
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+from agents.training import TrainingRun, load_policy, train
+from ea_gym.cli import main
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    out = tmp_path_factory.mktemp("ppo")
+    run = TrainingRun(algo="ppo", timesteps=256, obs_mode="oracle", n_envs=4, eval_every=256, eval_episodes=1,
+                      checkpoint_every=128, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
+    summary = train(run, out, progress_bar=False)
+    return out, summary
+
+
+def test_training_writes_model_normalisation_checkpoints_and_summary(trained):
+    out, summary = trained
+    for name in ("model.zip", "vecnormalize.pkl", "training.json", "best/best_model.zip", "evaluations.npz"):
+        path = out / name if name != "evaluations.npz" else out / "evaluations" / name
+        assert path.is_file(), name
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == [
+        "ppo_128_steps.zip", "ppo_256_steps.zip", "ppo_vecnormalize_128_steps.pkl", "ppo_vecnormalize_256_steps.pkl"]
+    assert json.loads((out / "training.json").read_text())["run"]["timesteps"] == summary["run"]["timesteps"] == 256
+
+
+def test_reloaded_policy_predicts_valid_actions_for_single_and_batched_observations(trained):
+    out, _ = trained
+    policy = load_policy(out)
+    env = gym.make("ea_gym/SpringMassDamper-v0", obs_mode="oracle")
+    obs, _ = env.reset(seed=0)
+    action, _ = policy.predict(obs)
+    assert env.action_space.contains(int(action))
+    batch = {key: np.stack([value, value]) for key, value in obs.items()}
+    actions, _ = policy.predict(batch)
+    assert actions.shape == (2,) and actions[0] == actions[1] == action  # deterministic, same input
+
+
+def test_training_resumes_from_a_checkpoint(trained, tmp_path):
+    out, _ = trained
+    run = TrainingRun(algo="ppo", timesteps=128, obs_mode="oracle", n_envs=4, eval_every=10_000, eval_episodes=1,
+                      checkpoint_every=10_000, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
+    summary = train(run, tmp_path, resume=out / "checkpoints" / "ppo_128_steps.zip", progress_bar=False)
+    assert summary["resumed_from"].endswith("ppo_128_steps.zip")
+    assert load_policy(tmp_path).model.num_timesteps == 128 + 128
+
+
+def test_train_command_rejects_bad_arguments(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--algo", "sac", "--out", "x"])
+    assert "invalid choice: 'sac'" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["train", "--timesteps", "0", "--out", "x"])
+    assert "expected a positive integer" in capsys.readouterr().err
