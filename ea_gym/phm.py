@@ -87,7 +87,8 @@ class HealthStatus:
         eai, eai_reference: EAI of every component over the step, (N, C).
         statistic: relative EA residual of every element over the detection window, (N, E).
         alarm: a fault has been detected, (N,); detection_time: when (s), NaN before.
-        probabilities: the newest frame's isolation class probabilities, (N, K) ("none" = 1 until a full frame).
+        probabilities: the newest frame's isolation class probabilities, (N, K) ("none" = 1 before an
+            alarm and until a full frame).
         diagnosis: the chain's belief: the running average of the probabilities since the alarm,
             ("none" = 1 before), (N, K).
         isolated: class index of the isolated parameter, 0 while none, (N,).
@@ -257,15 +258,15 @@ class PHMChain:
         s = self.state
         probabilities = np.zeros((self.n, len(self.classes)))
         probabilities[:, 0] = 1.0
-        full = s["steps"] >= self.frame_steps
-        if np.any(full):
-            noise = s["noise"][full].sum(-1)
+        # isolation only matters once a fault is detected, and needs a full frame
+        counted = (s["steps"] >= self.frame_steps) & s["alarm"]
+        if np.any(counted):
+            noise = s["noise"][counted].sum(-1)
             frame = self.monitor.frame_of(
-                s["ea"][full], s["ea_reference"][full], s["gram"][full].sum(-1), s["cross"][full].sum(-1), noise
+                s["ea"][counted], s["ea_reference"][counted], s["gram"][counted].sum(-1), s["cross"][counted].sum(-1), noise
             )
             features = frame_features(frame, self.classifier.variant, self.model.excitation_bandwidth)
-            probabilities[full] = self.classifier.predict_proba(features)
-        counted = full & s["alarm"]
+            probabilities[counted] = self.classifier.predict_proba(features)
         # an exponential average over the frames since the alarm: later frames, with the fault grown,
         # outweigh the first ambiguous ones
         weight = self.config.isolation_smoothing
