@@ -60,8 +60,9 @@ class PHMConfig:
         noise: sensor noise, fraction of each measured signal's RMS over a step.
         frame: isolation frame (s); must equal the frame the classifier was trained on.
         isolation_smoothing: weight of the newest frame in the running average of class probabilities.
-        isolation_confidence: belief in the suspect above which only the suspect's parameter is
-            estimated (below it, every degradable parameter is, so that a change of suspect finds a history).
+        isolation_confidence: the suspect's share of the fault classes' belief above which only its parameter is
+            estimated (below it, every degradable parameter is, so that a change of suspect finds a
+            history) and its End of Life predicted.
     """
 
     step: float = 1.0
@@ -193,6 +194,7 @@ class PHMChain:
             "history_t": np.full((n, self.history_length), np.nan),
             "history": np.full((n, D, self.history_length), np.nan),
             "isolated": np.zeros(n, dtype=int),
+            "confident": np.zeros(n, dtype=bool),
         }
         if systems is None:
             self.state = fresh
@@ -280,6 +282,9 @@ class PHMChain:
         total = s["probability_average"].sum(1, keepdims=True)
         none = np.eye(len(self.classes))[0]
         diagnosis = np.where(total > 0, s["probability_average"] / np.where(total > 0, total, 1.0), none)
+        # the alarm already says there is a fault: confidence is the suspect's share among the fault classes
+        share = diagnosis[np.arange(self.n), isolated] / np.maximum(diagnosis[:, 1:].sum(1), 1e-300)
+        s["confident"] = (isolated > 0) & (share >= self.config.isolation_confidence)
         return probabilities, diagnosis
 
     def _estimate(self) -> np.ndarray:
@@ -296,9 +301,7 @@ class PHMChain:
         if not np.any(ready):
             return s["estimates"].copy()
         # every parameter until the isolation is confident of a suspect, then the suspect alone
-        belief = s["probability_average"][np.arange(self.n), s["isolated"]] / np.maximum(s["probability_average"].sum(1), 1e-300)
-        confident = (s["isolated"] > 0) & (belief >= self.config.isolation_confidence)
-        chosen = np.where(confident[:, None], np.arange(D) == s["isolated"][:, None] - 1, True) & ready[:, None]
+        chosen = np.where(s["confident"][:, None], np.arange(D) == s["isolated"][:, None] - 1, True) & ready[:, None]
         rows, columns = np.nonzero(chosen)
         c = self.monitor.config.smoothing
         signals, load = s["signals"][rows], s["load"][rows][..., c:]
@@ -324,7 +327,7 @@ class PHMChain:
         s = self.state
         estimate = np.full(self.n, np.nan)
         eol = np.full((self.n, 3), math.inf)
-        isolated = s["isolated"] > 0
+        isolated = s["confident"]  # no End of Life for a suspect the isolation is unsure of
         if not np.any(isolated):
             return estimate, eol
         rows = np.flatnonzero(isolated)

@@ -60,43 +60,20 @@ except ImportError:  # pragma: no cover - depends on how the script is started
     for name in [m for m in sys.modules if m == "agents" or m.startswith("agents.")]:
         del sys.modules[name]
 
-import gymnasium as gym
-
 import ea_gym  # noqa: F401 - registers the environments
-from agents import ActionMap, EpisodeStats, Oracle, Periodic, RulThreshold, RunToFailure, evaluate, mean_ci95, tune
+from agents import ActionMap, EpisodeStats, Oracle, Periodic, RulThreshold, RunToFailure, evaluate, tune
+from agents.benchmark import ENV_ID, PERIODS, THRESHOLDS, env_factory, paired
+from agents.benchmark import fmt_ci as _fmt_ci
+from agents.benchmark import fmt_diff as _fmt_diff
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.files import write_json, write_text
 
-ENV_ID = "ea_gym/SpringMassDamper-v0"
-PERIODS = (20, 40, 60, 80, 120, 160, 240)
-THRESHOLDS = (2, 5, 10, 15, 20, 30, 45, 60)
 DEFAULT_OUT = ROOT / "experiments" / "results" / "env_decision"
-
-
-def env_factory(obs_mode: str):
-    return lambda: gym.make(ENV_ID, obs_mode=obs_mode, continue_after_failure=True)
 
 
 def _number(value: float) -> float | str:
     return value if math.isfinite(value) else str(value)
-
-
-def paired(a: EpisodeStats, b: EpisodeStats) -> dict[str, float]:
-    """Per-seed cost of a minus cost of b: mean and 95 % interval (normal approximation)."""
-    if not np.array_equal(a.seeds, b.seeds):
-        raise ValueError("paired differences need the same seeds")
-    mean, low, high = mean_ci95(a.per_episode["cost"] - b.per_episode["cost"])
-    return {"mean": mean, "ci95": [low, high], "clearly_more": bool(low > 0), "clearly_less": bool(high < 0)}
-
-
-def _fmt_ci(row: dict[str, Any]) -> str:
-    low, high = row["ci95"]
-    return f"{row['mean_cost']:.1f} [{low:.1f}, {high:.1f}]" if low is not None else f"{row['mean_cost']:.1f}"
-
-
-def _fmt_diff(d: dict[str, Any]) -> str:
-    return f"{d['mean']:+.1f} [{d['ci95'][0]:+.1f}, {d['ci95'][1]:+.1f}]"
 
 
 def sentence(key: str, row: dict[str, Any], rows: dict[str, dict[str, Any]]) -> str:

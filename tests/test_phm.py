@@ -69,8 +69,9 @@ def test_paper_fault_end_of_life_within_3_s_after_30_s_and_alpha_lambda(paper_ru
     assert fault.true == pytest.approx(55.0)
     assert fault.max_error_after <= 3.0
     k = chain.classes.index("k")
-    t = np.array([s.t[0] for s in run.statuses if 20.0 < s.t[0] < 50.0 and s.isolated[0] == k])
-    eol = np.array([s.eol[0] for s in run.statuses if 20.0 < s.t[0] < 50.0 and s.isolated[0] == k])
+    predictions = [s for s in run.statuses if 20.0 < s.t[0] < 50.0 and s.isolated[0] == k and np.isfinite(s.eol[0])]
+    t = np.array([s.t[0] for s in predictions])
+    eol = np.array([s.eol[0] for s in predictions])
     result = alpha_lambda(t, eol - t, 55.0 - t, alpha=0.2, lam=0.5, eol=55.0)
     assert result["passed"]
 

@@ -80,10 +80,10 @@ def test_trend_end_of_life_rejects_reversed_limits():
 
 
 class _FavoursK(FaultClassifier):
-    """A stand-in for the trained network: always "k" with probability 0.85 (no training in tests)."""
+    """A stand-in for the trained network: always "k" with probability 0.95 (no training in tests)."""
 
     def predict_proba(self, features):
-        return np.tile([0.0, 0.85, 0.1, 0.05], (len(features), 1))
+        return np.tile([0.0, 0.95, 0.03, 0.02], (len(features), 1))
 
 
 @pytest.fixture(scope="module")
@@ -105,7 +105,7 @@ def test_chain_results_are_json_and_consistent_with_the_run(setting):
     assert results["detection_time"] is not None and 5.0 < results["detection_time"] < 30.0
     probabilities = results["class_probabilities"]
     assert set(probabilities) == {"none", "k", "m", "b"}
-    assert probabilities["k"] == pytest.approx(0.85)
+    assert probabilities["k"] == pytest.approx(0.95)
     assert sum(probabilities.values()) == pytest.approx(1.0)
 
     estimate = results["estimate"]
