@@ -168,7 +168,8 @@ class PHMChain:
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Start over for all systems, or for those where the boolean mask is true."""
-        n, E, C, nx = self.n, len(self.monitor.elements), len(self.monitor.components), len(self.model.state_names)
+        n = self.n if systems is None else int(np.count_nonzero(systems))  # fresh rows only for those reset
+        E, C, nx = len(self.monitor.elements), len(self.monitor.components), len(self.model.state_names)
         D = len(self.degradable)
         subs = self.frame_steps * (self.step_samples // self.monitor.n_sub)
         balances = self.frame_steps * (self.step_samples // (self.monitor.n_sub * self.monitor.n_balance))
@@ -201,7 +202,7 @@ class PHMChain:
             self.monitor.reset()
             return
         for key, value in fresh.items():
-            self.state[key][systems] = value[systems]
+            self.state[key][systems] = value
         self.monitor.reset(systems)
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> HealthStatus:
