@@ -62,7 +62,6 @@ import argparse
 import functools
 import math
 import os
-import platform
 import resource
 import sys
 import time
@@ -88,6 +87,8 @@ from threadpoolctl import threadpool_limits
 import ea_gym.env.core as core_module
 import ea_gym.phm as phm_module
 import ea_gym.prognosis as prognosis_module
+from machine import machine_info  # noqa: E402 - experiments/machine.py
+
 from ea_gym.degradation import WearConfig
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.files import write_json
@@ -135,19 +136,6 @@ def rss_mib() -> float:
         pass
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss  # KiB on Linux, bytes on macOS
     return peak / (1024.0 * 1024.0) if sys.platform == "darwin" else peak / 1024.0
-
-
-def machine_info() -> dict[str, Any]:
-    return {
-        "processor": platform.processor() or platform.machine(),
-        "cpu_count": os.cpu_count(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "torch": torch.__version__,
-        "gymnasium": gym.__version__,
-        "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-    }
 
 
 def context_costs(repeats: int = 2000) -> dict[str, float]:
@@ -585,17 +573,17 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     )
     parser.add_argument("--steps", type=int, default=3000, help="timed steps per throughput run")
     parser.add_argument("--warmup", type=int, default=50, help="untimed steps before each timed run")
-    parser.add_argument("--stage-steps", type=int, default=None, help="steps per stage-timing run (default: --steps)")
+    parser.add_argument("--stage-steps", type=int, default=None, help="steps per stage-timing run; None: as many as --steps (default: %(default)s)")
     parser.add_argument("--soak-steps", type=int, default=100_000, help="soak steps (0: skip the soak)")
     parser.add_argument(
         "--soak-carry-on", type=float, default=None, metavar="P",
         help="soak policy: action 0 (carry on) with probability P, else a uniform random action "
-        "(default: uniform random actions, whose frequent replacements keep the chain from isolating)",
+        "(None: uniform random actions, whose frequent replacements keep the chain from isolating) (default: %(default)s)",
     )
     parser.add_argument("--soak-sample-every", type=int, default=10_000, help="memory sample period of the soak (steps)")
     parser.add_argument("--window", type=float, default=1.0, help="window_seconds of the environment")
     parser.add_argument("--seed", type=int, default=0, help="seed of resets and random actions")
-    parser.add_argument("--core", type=int, default=None, help="CPU to pin to (default: the lowest allowed one)")
+    parser.add_argument("--core", type=int, default=None, help="CPU to pin to; None: the lowest allowed one (default: %(default)s)")
     parser.add_argument("--no-pin", action="store_true", help="do not pin the process to one CPU")
     parser.add_argument("--json", type=Path, default=None, metavar="PATH", help="also write the numbers as JSON to PATH (atomic)")
     args = parser.parse_args(argv)

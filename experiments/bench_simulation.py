@@ -31,8 +31,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import platform
 import statistics
 import sys
 import time
@@ -41,13 +39,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy
 from scipy.integrate import solve_ivp
 
 try:  # runnable as ``python experiments/bench_simulation.py`` from a checkout without installing
     import ea_gym  # noqa: F401
 except ImportError:  # pragma: no cover - depends on how the script is started
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from machine import machine_info  # noqa: E402 - experiments/machine.py
 
 from ea_gym.files import write_json
 from ea_gym.loads import Sine, SinesLoad
@@ -153,23 +152,6 @@ def rel_diff(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
     """max |a - b| relative to max |scale| (the signal's amplitude)."""
     return float(np.max(np.abs(a - b)) / np.max(np.abs(scale)))
 
-
-
-def machine_info() -> dict[str, Any]:
-    import numba
-
-    return {
-        "processor": platform.processor() or platform.machine(),
-        "cpu_count": os.cpu_count(),
-        "platform": platform.platform(),
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "scipy": scipy.__version__,
-        "numba": numba.__version__,
-        # threaded BLAS matters here: run_model's parameter interpolant is one tall BLAS product
-        "blas_threads_env": {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")},
-        "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
-    }
 
 
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
