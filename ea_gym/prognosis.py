@@ -157,10 +157,6 @@ class EndOfLife:
         """Remaining useful life (s, eq 2)."""
         return self.eol - self.t
 
-    @property
-    def rul_interval(self) -> tuple[float, float]:
-        return self.eol_low - self.t, self.eol_high - self.t
-
 
 @dataclass(frozen=True)
 class ExtrapolationConfig:
