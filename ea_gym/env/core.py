@@ -328,7 +328,7 @@ class MaintenanceCore:
         s["reference"][i] = 0.0
         mask = np.zeros(self.n, dtype=bool)
         mask[i] = True
-        if self.components[d] in self.wear_components and self.wear_components[self.wear.faulty[i]] == self.components[d]:
+        if self.wear_components[self.wear.faulty[i]] == self.components[d]:  # the faulty one: a new fault is drawn
             self.wear.start(rngs, s["clock"], mask)
         if self.chain is not None:
             self.chain.reset(mask)
