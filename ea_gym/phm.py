@@ -7,8 +7,14 @@ isolated parameter's estimate and its End of Life and RUL with an interval.
 
 Detection compares, element by element, the EA residual summed over the last ``detector.window``
 seconds with the reference EA over the same span; the threshold is calibrated on fault-free runs at
-the same noise level (``calibrate_thresholds``), and an alarm needs ``persistence`` steps in a row.
-Isolation averages the network's probabilities (exponentially) over the frames seen since the alarm.
+the same noise level (``calibrate_thresholds``), and so does the energy-balance residual relative to the
+dissipators' EA (where a dissipator's fault shows); an alarm needs ``persistence`` steps in a row.
+Isolation weighs two kinds of evidence. The network's probabilities are averaged (exponentially) over
+the frames seen since the alarm; and the EA inversion, run for every hypothesis "parameter j alone has
+changed", says how well each hypothesis explains the measured EA (its fit cost; the nominal model's
+for "none"). The belief in class j is the network's share of it (plus a floor) times c_min / c_j, the
+running ratio of the best fit cost to j's: a network that cannot yet tell a small fault apart does
+not outvote a hypothesis that the EA fits a hundred times better.
 """
 
 from __future__ import annotations
@@ -17,12 +23,14 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
+from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of, draw_loads
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow, add_sensor_noise
-from ea_gym.energy import _interval_activity, activity_index, window_samples
+from ea_gym.energy import activity_index, window_samples
 from ea_gym.models import SystemModel
 from ea_gym.prognosis import EAParameterEstimator, EstimatorConfig, ExtrapolationConfig, predict_end_of_life
 
@@ -60,6 +68,9 @@ class PHMConfig:
         noise: sensor noise, fraction of each measured signal's RMS over a step.
         frame: isolation frame (s); must equal the frame the classifier was trained on.
         isolation_smoothing: weight of the newest frame in the running average of class probabilities.
+        fit_smoothing: weight of the newest step in the running average of each hypothesis's log fit cost.
+        network_floor: added to the network's share of every class before it is weighed by the fit
+            evidence, so that a network unsure of a small fault cannot veto the hypothesis the EA fits.
         isolation_confidence: the suspect's share of the fault classes' belief above which only its parameter is
             estimated (below it, every degradable parameter is, so that a change of suspect finds a
             history) and its End of Life predicted.
@@ -71,7 +82,9 @@ class PHMConfig:
     noise: float = 0.0
     frame: float = 20.0
     isolation_smoothing: float = 0.2
-    isolation_confidence: float = 0.9
+    fit_smoothing: float = 0.3
+    network_floor: float = 0.1
+    isolation_confidence: float = 0.75
     monitor: MonitorConfig = field(default_factory=MonitorConfig)
     detector: DetectorConfig = field(default_factory=DetectorConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
@@ -90,8 +103,8 @@ class HealthStatus:
         alarm: a fault has been detected, (N,); detection_time: when (s), NaN before.
         probabilities: the newest frame's isolation class probabilities, (N, K) ("none" = 1 before an
             alarm and until a full frame).
-        diagnosis: the chain's belief: the running average of the probabilities since the alarm,
-            ("none" = 1 before), (N, K).
+        diagnosis: the chain's belief ("none" = 1 before the alarm), (N, K): the network's running
+            average since the alarm weighed by the EA fit of each hypothesis.
         isolated: class index of the isolated parameter, 0 while none, (N,).
         estimates: estimate of every degradable parameter, (N, D), each as if it alone were faulty.
         estimate: the isolated parameter's filtered estimate, NaN while none, (N,); it describes the
@@ -121,6 +134,31 @@ class HealthStatus:
     def rul(self) -> np.ndarray:
         """Point RUL and its interval (s), (N, 3); inf where no End of Life is predicted."""
         return np.stack([self.eol, self.eol_low, self.eol_high], axis=1) - self.t[:, None]
+
+
+def dissipator_elements(monitor: Monitor) -> np.ndarray:
+    """Indices (into ``monitor.elements``) of the R components, whose EA scales the energy-balance residual;
+    all the components where the model has no R element."""
+    elements = monitor.model.graph.elements
+    dissipators = [monitor.elements.index(c) for c in monitor.components if elements[c].kind is Kind.R]
+    return np.array(dissipators or monitor._component_index)
+
+
+def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, dissipators: np.ndarray) -> np.ndarray:
+    """Detection statistics from sums over one window: (..., E + 1).
+
+    Args:
+        ea, ea_reference: real and reference EA of every element (J), (..., E).
+        balance: the energy-balance residual, real minus reference (J), (...).
+        dissipators: element indices whose reference EA scales the balance: a dissipator's fault leaves
+            that share of its dissipation unaccounted for, while barely changing any element's EA.
+
+    Returns:
+        (ea - ea_reference) / ea_reference per element, then balance / the dissipators' reference EA.
+    """
+    relative = (ea - ea_reference) / np.maximum(ea_reference, 1e-300)
+    dissipated = np.maximum(ea_reference[..., dissipators].sum(-1), 1e-300)
+    return np.concatenate([relative, (balance / dissipated)[..., None]], axis=-1)
 
 
 def _push(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
@@ -157,6 +195,8 @@ class PHMChain:
         self.step_samples = window_samples(config.step, self.h)
         self.frame_steps = window_samples(config.frame, config.step)
         self.detect_subs = window_samples(config.detector.window, config.monitor.sub_window)
+        self.detect_balances = window_samples(config.detector.window, config.monitor.balance_window)
+        self._dissipators = dissipator_elements(self.monitor)
         self.estimate_steps = window_samples(config.estimator.window, config.step)
         self.median_length = config.estimator.median
         self.step_time = config.step if config.step_time is None else config.step_time
@@ -183,6 +223,7 @@ class PHMChain:
             "ea_reference": np.zeros((n, E, subs)),
             "gram": np.zeros((n, C, C, balances)),
             "cross": np.zeros((n, C, balances)),
+            "balance": np.zeros((n, balances)),
             "noise": np.zeros((n, 2, nx, self.frame_steps)),
             "signals": np.zeros((n, nx, signal_samples)),
             "load": np.zeros((n, 2, signal_samples)),
@@ -194,6 +235,8 @@ class PHMChain:
             "estimates": np.tile(self.model.parameter_vector()[self._degradable_index], (n, 1)),
             "history_t": np.full((n, self.history_length), np.nan),
             "history": np.full((n, D, self.history_length), np.nan),
+            "fit": np.full((n, D), np.nan),
+            "estimated": np.zeros((n, D), dtype=bool),
             "isolated": np.zeros(n, dtype=int),
             "confident": np.zeros(n, dtype=bool),
         }
@@ -221,6 +264,7 @@ class PHMChain:
             s[key] = _push(s[key], value)
         s["gram"] = _push(s["gram"], np.moveaxis(window.gram, 1, -1))
         s["cross"] = _push(s["cross"], np.moveaxis(window.cross, 1, -1))
+        s["balance"] = _push(s["balance"], window.balance)
         s["noise"] = _push(s["noise"], window.noise[..., None])
         s["signals"] = _push(s["signals"], measured[..., 1:])
         s["load"] = _push(s["load"], np.stack([load, load_rate], axis=1)[..., 1:])
@@ -237,8 +281,9 @@ class PHMChain:
         s["detection_time"] = np.where(new_alarm, s["time"], s["detection_time"])
         s["alarm"] = s["alarm"] | new_alarm
 
-        probabilities, diagnosis = self._isolate()
+        probabilities = self._classify()
         estimates = self._estimate()
+        diagnosis = self._isolate()
         estimate, eol = self._prognose(estimates)
         return HealthStatus(
             t=s["time"].copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, eai=eai, eai_reference=eai_ref,
@@ -247,17 +292,23 @@ class PHMChain:
             eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2],
         )
 
+    @property
+    def statistic_names(self) -> tuple[str, ...]:
+        """What the columns of ``HealthStatus.statistic`` (and the thresholds) watch."""
+        return (*self.monitor.elements, "energy balance")
+
     def _statistic(self) -> np.ndarray:
-        """Relative EA residual of every element over the detection window, (N, E)."""
+        """Relative EA residual of every element and relative energy-balance residual over the detection window, (N, E + 1)."""
         s = self.state
-        ea = s["ea"][..., -self.detect_subs :].sum(-1)
-        ref = s["ea_reference"][..., -self.detect_subs :].sum(-1)
+        statistic = relative_residuals(
+            s["ea"][..., -self.detect_subs :].sum(-1), s["ea_reference"][..., -self.detect_subs :].sum(-1),
+            s["balance"][..., -self.detect_balances :].sum(-1), self._dissipators,
+        )
         seen = np.minimum(s["steps"] * (self.step_samples // self.monitor.n_sub), self.detect_subs)
-        statistic = (ea - ref) / np.maximum(ref, 1e-300)
         return np.where((seen >= self.detect_subs)[:, None], statistic, 0.0)
 
-    def _isolate(self) -> tuple[np.ndarray, np.ndarray]:
-        """The newest frame's class probabilities and the running belief, both (N, K)."""
+    def _classify(self) -> np.ndarray:
+        """The newest frame's network class probabilities (N, K); updates their running average."""
         s = self.state
         probabilities = np.zeros((self.n, len(self.classes)))
         probabilities[:, 0] = 1.0
@@ -274,19 +325,42 @@ class PHMChain:
         # outweigh the first ambiguous ones
         weight = self.config.isolation_smoothing
         s["probability_average"][counted] += weight * (probabilities[counted] - s["probability_average"][counted])
-        fault_scores = s["probability_average"][:, 1:]
-        isolated = np.where(fault_scores.sum(1) > 0, 1 + np.argmax(fault_scores, axis=1), 0)
-        # a new suspect's old estimates are stale (it was not estimated meanwhile): start it afresh
+        return probabilities
+
+    def _nominal_cost(self) -> np.ndarray:
+        """Fit cost of "none", (N,): the inversion's measure of mismatch, applied to the reference model
+        over the detection window."""
+        s = self.state
+        components = self.monitor._component_index
+        ea = s["ea"][:, components, -self.detect_subs :].sum(-1)
+        mismatch = np.concatenate([ea - s["ea_reference"][:, components, -self.detect_subs :].sum(-1),
+                                   s["balance"][:, -self.detect_balances :].sum(-1, keepdims=True)], axis=1)
+        return ((mismatch / self.estimator.mismatch_scale(np.concatenate([ea, mismatch[:, -1:]], axis=1))) ** 2).sum(1)
+
+    def _isolate(self) -> np.ndarray:
+        """The chain's belief (N, K) from the network's average and the hypotheses' fit costs; sets the suspect."""
+        s = self.state
+        K = len(self.classes)
+        total = s["probability_average"].sum(1, keepdims=True)
+        # before the network's first frame its belief is uniform: the fits alone decide
+        network = np.where(total > 0, s["probability_average"] / np.where(total > 0, total, 1.0), 1.0 / K)
+        nominal_cost = self._nominal_cost()
+        fit = np.concatenate([np.log(nominal_cost + 1e-12)[:, None], s["fit"]], axis=1)
+        evidence = np.exp(np.min(fit, axis=1, initial=np.inf, where=np.isfinite(fit))[:, None] - fit)
+        evidence = np.where(np.isfinite(evidence), evidence, 1.0)  # a hypothesis not yet fitted: no evidence either way
+        belief = (network + self.config.network_floor) * evidence
+        believed = s["alarm"] & (np.any(np.isfinite(s["fit"]), axis=1) | (total[:, 0] > 0))
+        diagnosis = np.where(believed[:, None], belief / belief.sum(1, keepdims=True), np.eye(K)[0])
+        isolated = np.where(believed, 1 + np.argmax(diagnosis[:, 1:], axis=1), 0)
+        # a new suspect not estimated at this step has stale estimates: start it afresh
         changed = np.flatnonzero((isolated != s["isolated"]) & (isolated > 0))
+        changed = changed[~s["estimated"][changed, isolated[changed] - 1]]
         s["raw"][changed, isolated[changed] - 1] = np.nan
         s["isolated"] = isolated
-        total = s["probability_average"].sum(1, keepdims=True)
-        none = np.eye(len(self.classes))[0]
-        diagnosis = np.where(total > 0, s["probability_average"] / np.where(total > 0, total, 1.0), none)
         # the alarm already says there is a fault: confidence is the suspect's share among the fault classes
         share = diagnosis[np.arange(self.n), isolated] / np.maximum(diagnosis[:, 1:].sum(1), 1e-300)
         s["confident"] = (isolated > 0) & (share >= self.config.isolation_confidence)
-        return probabilities, diagnosis
+        return diagnosis
 
     def _estimate(self) -> np.ndarray:
         """Latest filtered EA-inversion estimate of every degradable parameter, (N, D).
@@ -299,6 +373,7 @@ class PHMChain:
         D = len(self.degradable)
         # nothing to estimate before an alarm: the chain then believes the nominal values
         ready = (s["steps"] >= self.estimate_steps) & s["alarm"]
+        s["estimated"] = np.zeros((self.n, D), dtype=bool)
         if not np.any(ready):
             return s["estimates"].copy()
         # every parameter until the isolation is confident of a suspect, then the suspect alone
@@ -311,11 +386,16 @@ class PHMChain:
         # candidates' signals are: weakly identifiable parameters (a light damper) feel any mismatch
         measured = np.concatenate([signals[..., c:], load[:, :1]], axis=1)
         power, _ = self.monitor.powers(measured, c)
-        ea = _interval_activity(power[:, self.monitor._component_index], self.h).sum(-1)
         raw = s["raw"]
-        values = self.estimator.estimate(
-            self._degradable_index[columns], start, load[:, 0], load[:, 1], ea, previous=raw[rows, columns, -1]
+        values, cost = self.estimator.estimate(
+            self._degradable_index[columns], start, load[:, 0], load[:, 1], self.estimator.signature(power),
+            previous=raw[rows, columns, -1],
         )
+        # running average of each hypothesis's log fit cost (the floor keeps noise-free fits finite)
+        log_cost = np.log(cost + 1e-12)
+        fit = s["fit"][rows, columns]
+        s["fit"][rows, columns] = np.where(np.isnan(fit), log_cost, fit + self.config.fit_smoothing * (log_cost - fit))
+        s["estimated"] = chosen
         raw[rows, columns] = np.concatenate([raw[rows, columns, 1:], values[:, None]], axis=-1)
         s["estimates"][rows, columns] = np.nanmedian(raw[rows, columns], axis=-1)
         fresh = np.full((self.n, D), np.nan)
@@ -373,19 +453,18 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
     clean = measure(monitor, nominal, states, 0.0, rng)
     step = window_samples(config.step, h)
     subs = window_samples(config.detector.window, config.monitor.sub_window)
-    ea, ref = [], []
+    windows = []
     for start in range(0, len(t) - 1, step):
         part = slice(start, start + step + 1)
         noisy = add_sensor_noise(clean[..., part], config.noise, rng)
-        window = monitor.update(noisy, clean[..., part], u[:, part])
-        ea.append(window.ea)
-        ref.append(window.ea_reference)
-    ea, ref = np.concatenate(ea, -1), np.concatenate(ref, -1)
-    kernel = np.ones(subs)
-    sums = np.apply_along_axis(lambda x: np.convolve(x, kernel, "valid"), -1, ea)
-    ref_sums = np.apply_along_axis(lambda x: np.convolve(x, kernel, "valid"), -1, ref)
-    statistic = np.abs(sums - ref_sums) / np.maximum(ref_sums, 1e-300)
-    return np.maximum(d.margin * statistic.max(axis=(0, 2)), d.floor)
+        windows.append(monitor.update(noisy, clean[..., part], u[:, part]))
+    # the balance windows are whole sub-windows: spread each over its sub-windows to align the sums
+    per_sub = window_samples(config.monitor.balance_window, config.monitor.sub_window)
+    balance = np.concatenate([w.balance for w in windows], -1).repeat(per_sub, -1) / per_sub
+    series = [np.concatenate([w.ea for w in windows], -1), np.concatenate([w.ea_reference for w in windows], -1), balance]
+    ea, ref, balance = (sliding_window_view(x, subs, axis=-1).sum(-1) for x in series)
+    statistic = relative_residuals(np.moveaxis(ea, -1, 0), np.moveaxis(ref, -1, 0), np.moveaxis(balance, -1, 0), dissipator_elements(monitor))
+    return np.maximum(d.margin * np.abs(statistic).max(axis=(0, 1)), d.floor)
 
 
 @dataclass(frozen=True)

@@ -3,8 +3,8 @@
 Estimation inverts Energy Activity window by window. For a window [t0, t1], candidate values phi of
 the isolated parameter are simulated from the measured state at t0 - c under the measured load (c is
 the smoothing context), their signals go through the same denoising and nominal laws as the
-measurements, and the candidate whose components' EA over [t0, t1] matches the measured EA best (in
-relative least squares) is refined on a finer grid. This uses eq 10's ingredients without linearising
+measurements, and the candidate whose components' EA and energy balance over [t0, t1] match the
+measured ones best (in relative least squares) is refined on a finer grid. This uses eq 10's ingredients without linearising
 them: dS/dphi is the model's own response to phi, dEA/dS the component's constitutive law. It is
 preferred to integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors
 do not accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the
@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import norm
 
+from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import simulate_batch
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import _interval_activity
@@ -42,6 +43,9 @@ class EstimatorConfig:
             span, when there is one (parameters change little from one window to the next).
         warm_passes: passes from a warm start.
         median: length of the (causal) median filter over successive estimates (paper 4.4).
+        balance_share: the energy-balance mismatch is relative to the dissipators' EA plus this share of
+            all the components' EA: the balance is where a dissipator's fault shows, but its end points
+            carry the stored energies' errors, which should not outweigh a good EA match.
     """
 
     window: float = 3.0
@@ -51,6 +55,7 @@ class EstimatorConfig:
     warm_span: float = 0.05
     warm_passes: int = 2
     median: int = 3
+    balance_share: float = 0.2
 
 
 class EAParameterEstimator:
@@ -67,6 +72,30 @@ class EAParameterEstimator:
         self.config = config
         self.context = monitor.config.smoothing
         self._components = np.array([monitor.elements.index(c) for c in monitor.components])
+        self._sources = np.array([monitor.elements.index(u) for u in self.model.state_space.input_names])
+        elements = self.model.graph.elements
+        dissipators = [j for j, c in enumerate(monitor.components) if elements[c].kind is Kind.R]
+        self._dissipators = np.array(dissipators or range(len(monitor.components)))  # columns of the signature
+
+    def signature(self, power: np.ndarray) -> np.ndarray:
+        """What the inversion matches over a window, from every element's power (..., E, L + 1): (..., C + 1).
+
+        The EA of each component (J) and, last, the window's energy-balance residual (J): the energy
+        the sources deliver minus what the components absorb, both under the nominal laws. A
+        dissipator's nominal law hides its own fault from its EA, but not from this balance (a damper
+        whose coefficient grew by 10 % leaves 10 % of its dissipation unaccounted for), which is what
+        makes a light damper identifiable.
+        """
+        ea = _interval_activity(power[..., self._components, :], self.monitor.h).sum(-1)
+        net = power[..., self._sources, :].sum(-2) - power[..., self._components, :].sum(-2)
+        balance = 0.5 * (net[..., :-1] + net[..., 1:]).sum(-1) * self.monitor.h
+        return np.concatenate([ea, balance[..., None]], axis=-1)
+
+    def mismatch_scale(self, signature: np.ndarray) -> np.ndarray:
+        """Per-entry scale of the mismatch: each component's EA, and for the balance see ``balance_share``."""
+        ea = signature[..., :-1]
+        balance = ea[..., self._dissipators].sum(-1, keepdims=True) + self.config.balance_share * ea.sum(-1, keepdims=True)
+        return np.maximum(np.concatenate([ea, balance], axis=-1), 1e-300)
 
     def candidate_grid(self, parameter: str) -> np.ndarray:
         lower, upper = self.model.safe_limits[parameter]
@@ -74,8 +103,8 @@ class EAParameterEstimator:
         low = max(lower - self.config.margin * span, 1e-6 * upper)
         return np.linspace(low, upper + self.config.margin * span, self.config.grid)
 
-    def _candidate_ea(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray) -> np.ndarray:
-        """EA of the components over the window for each (system, candidate): (N, G, C)."""
+    def _candidate_signature(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+        """``signature`` over the window for each (system, candidate): (N, G, C + 1)."""
         n, g = values.shape
         space = self.model.state_space
         theta = np.repeat(self.model.parameter_vector()[None, None], n, 0).repeat(g, 1)
@@ -88,8 +117,7 @@ class EAParameterEstimator:
         signals = np.einsum("nij,ntj->nit", self.monitor.measurement_matrix(theta), states)
         signals = np.concatenate([signals, uu.transpose(0, 2, 1)], axis=1)
         power, _ = self.monitor.powers(signals, self.context)
-        ea = _interval_activity(power[:, self._components], self.monitor.h).sum(-1)
-        return ea.reshape(n, g, -1)
+        return self.signature(power).reshape(n, g, -1)
 
     def estimate(
         self,
@@ -97,17 +125,22 @@ class EAParameterEstimator:
         start: np.ndarray,
         u: np.ndarray,
         du: np.ndarray,
-        ea: np.ndarray,
+        measured: np.ndarray,
         previous: np.ndarray | None = None,
-    ) -> np.ndarray:
-        """Parameter value per system that best explains the measured EA.
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Parameter value per system that best explains the measured EA and energy balance, and how well it does.
 
         Args:
             parameter_index: index into ``model.parameter_names`` of each system's isolated parameter, (N,).
             start: denoised measured signals (flows of I, displacements of C) at t0 - c, (N, nx).
             u, du: load and its derivative from t0 - c to t1, (N, c + L + 1).
-            ea: measured EA of each component over [t0, t1] (J), (N, C).
+            measured: ``signature`` of the measurements over [t0, t1], (N, C + 1).
             previous: the last estimate of each system, NaN where there is none; finite: a warm start.
+
+        Returns:
+            the estimates (N,) and their fit costs (N,): the sum of the squared relative mismatches
+            between the best candidate's signature and the measured one. Comparing the costs of the
+            hypotheses "parameter j alone has changed" tells which one the EA supports.
         """
         names = self.model.parameter_names
         grids = np.stack([self.candidate_grid(names[j]) for j in parameter_index])
@@ -117,22 +150,28 @@ class EAParameterEstimator:
             offsets = np.linspace(-1.0, 1.0, self.config.grid) * self.config.warm_span
             grids[warm] = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
         # warm and cold systems are searched apart, so that a system's estimate never depends on the batch
-        estimate = np.empty(len(parameter_index))
+        estimate, fit = np.empty(len(parameter_index)), np.empty(len(parameter_index))
         for rows, passes in ((warm, self.config.warm_passes), (~warm, self.config.passes)):
             if np.any(rows):
-                estimate[rows] = self._search(parameter_index[rows], grids[rows], start[rows], u[rows], du[rows], ea[rows], passes)
-        return estimate
+                estimate[rows], fit[rows] = self._search(
+                    parameter_index[rows], grids[rows], start[rows], u[rows], du[rows], measured[rows], passes
+                )
+        return estimate, fit
 
-    def _search(self, parameter_index, grids, start, u, du, ea, passes: int) -> np.ndarray:
-        """Grid search refined ``passes`` times; each pass narrows to one step either side of the best."""
-        scale = np.maximum(ea, 1e-300)[:, None, :]
+    def _search(self, parameter_index, grids, start, u, du, measured, passes: int) -> tuple[np.ndarray, np.ndarray]:
+        """Grid search refined ``passes`` times; each pass narrows to one step either side of the best.
+
+        Returns the best candidate of the last pass and its cost."""
+        scale = self.mismatch_scale(measured)[:, None, :]
         rows = np.arange(len(grids))
         for _ in range(passes):
-            cost = (((self._candidate_ea(parameter_index, grids, start, u, du) - ea[:, None, :]) / scale) ** 2).sum(-1)
+            mismatch = self._candidate_signature(parameter_index, grids, start, u, du) - measured[:, None, :]
+            cost = ((mismatch / scale) ** 2).sum(-1)
             step = grids[:, 1] - grids[:, 0]
-            centre = grids[rows, np.argmin(cost, axis=1)]
+            best = np.argmin(cost, axis=1)
+            centre = grids[rows, best]
             grids = np.maximum(centre[:, None] + np.linspace(-1.0, 1.0, self.config.grid) * step[:, None], 1e-6 * grids[:, -1:])
-        return centre
+        return centre, cost[rows, best]
 
 
 @dataclass(frozen=True)

@@ -646,8 +646,9 @@ def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.
 
 def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
                  results: dict | None = None) -> Path:
-    """Measured vs reference EA of every element per step, and the detection statistic of every
-    element relative to its threshold (log scale; the alarm needs it above 1 for ``persistence`` steps)."""
+    """Measured vs reference EA of every element per step, and the detection statistics (every element's
+    EA residual and the energy balance's) relative to their thresholds (log scale; the alarm needs one
+    above 1 for ``persistence`` steps)."""
     results = chain_results(run, chain, scenario) if results is None else results
     t = _times(run)
     elements = chain.monitor.elements
@@ -671,17 +672,17 @@ def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str |
     ax = fig.add_subplot(grid[rows, :])
     statistic = np.array([np.abs(s.statistic[0]) for s in run.statuses]) / chain.thresholds
     floor = 1e-3
-    for e, name in enumerate(elements):
+    for e, name in enumerate(chain.statistic_names):
         ax.semilogy(t, np.maximum(statistic[:, e], floor), lw=1.0, label=name)
     ax.axhline(1.0, color="k", lw=1.4, label="threshold")
     _mark_events(ax, results, scenario)
     ax.set_ylim(floor, max(10.0, float(np.nanmax(statistic)) * 2 if statistic.size else 10.0))
     ax.set_xlabel("time (s)")
-    ax.set_ylabel("|relative EA residual| / threshold")
+    ax.set_ylabel("|relative residual| / threshold")
     ax.set_title(f"Detection statistic over {chain.config.detector.window:g} s "
                  f"(alarm after {chain.config.detector.persistence} steps above 1)", fontsize=10)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(loc="upper left", fontsize=8, ncol=n + 3)
+    ax.legend(loc="upper left", fontsize=8, ncol=len(chain.statistic_names) + 2)
     fig.tight_layout()
     return save_figure(fig, path)
 

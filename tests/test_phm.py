@@ -99,6 +99,30 @@ def test_no_false_alarm_on_a_fault_free_run_at_one_percent_noise():
     assert not run.statuses[-1].alarm[0]
 
 
+def test_isolation_follows_the_hypothesis_the_ea_fits_when_the_network_is_unsure():
+    chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
+    s = chain.state
+    s["alarm"][:] = True
+    assert chain.classes == ("none", "k", "m", "b") and chain.degradable == ("k", "m", "b")
+    # the network leans to "none", then b (a small fault it cannot yet tell apart), in both systems
+    s["probability_average"][:] = [0.6, 0.0, 0.0, 0.3]
+    # system 0: the k hypothesis fits the EA 100 times better than m or b; system 1: nothing fitted yet
+    s["fit"][0] = np.log([1e-6, 1e-4, 1e-4])
+    # the nominal model is off by 10 % of the reference EA in every component
+    s["ea"][:], s["ea_reference"][:] = 1.1, 1.0
+    nominal_cost = 3 * (0.1 / 1.1) ** 2  # the inversion's relative mismatch, on the reference model
+    assert chain._nominal_cost() == pytest.approx([nominal_cost] * 2, rel=1e-12)
+    diagnosis = chain._isolate()
+    # belief in class j = (network share + floor) x c_min / c_j, normalised
+    f = chain.config.network_floor
+    weights = np.array([(2 / 3 + f) * 1e-6 / nominal_cost, f, f * 1e-2, (1 / 3 + f) * 1e-2])
+    np.testing.assert_allclose(diagnosis[0], weights / weights.sum(), rtol=1e-9)
+    assert chain.classes[s["isolated"][0]] == "k" and s["confident"][0]
+    # without fits, the network's belief stands (with the floor): b is the suspect, and not a confident one
+    np.testing.assert_allclose(diagnosis[1], (np.array([2 / 3, 0.0, 0.0, 1 / 3]) + f) / (1 + 4 * f), rtol=1e-9)
+    assert chain.classes[s["isolated"][1]] == "b" and not s["confident"][1]
+
+
 def test_monitor_residuals_vanish_without_fault_and_noise():
     t = np.arange(3001) * 0.01
     scenario = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=30.0)
@@ -135,7 +159,7 @@ def test_energy_balance_deviation_points_at_a_stiffness_fault_without_noise():
     assert np.abs(beta[[0, 2]]).max() <= 0.5 * abs(beta[1])
 
 
-def test_ea_inversion_recovers_a_constant_parameter_without_noise():
+def test_ea_inversion_recovers_a_constant_parameter_and_only_the_true_hypothesis_fits():
     t = np.arange(601) * 0.01
     scenario = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=6.0)
     load = scenario.make_load()
@@ -148,12 +172,16 @@ def test_ea_inversion_recovers_a_constant_parameter_without_noise():
     c = monitor.config.smoothing
     window = np.concatenate([signals, load.value(t)[None, None]], axis=1)[..., c:]
     power, _ = monitor.powers(window, c)
-    from ea_gym.energy import _interval_activity
-
-    ea = _interval_activity(power[:, [1, 2, 3]], 0.01).sum(-1)
+    measured = estimator.signature(power)
     start = monitor.state_filter(signals[..., : 2 * c + 1])[..., c]
-    k_hat = estimator.estimate(np.array([1]), start, load.value(t)[None, c:], load.derivative(t)[None, c:], ea)
-    assert k_hat[0] == pytest.approx(92.0, abs=0.05)
+    hypotheses = np.arange(3)  # m, k, b: each as if it alone had changed
+    values, fit = estimator.estimate(
+        hypotheses, np.repeat(start, 3, 0), np.repeat(load.value(t)[None, c:], 3, 0),
+        np.repeat(load.derivative(t)[None, c:], 3, 0), np.repeat(measured, 3, 0),
+    )
+    assert values[1] == pytest.approx(92.0, abs=0.05)
+    # the true hypothesis explains the EA; neither m nor b alone can (that is what isolation by fit uses)
+    assert fit[1] < 0.01 * min(fit[0], fit[2])
 
 
 def test_end_of_life_of_a_noise_free_linear_trend_is_exact_and_inside_its_interval():

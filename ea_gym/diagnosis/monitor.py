@@ -59,6 +59,7 @@ class MonitorWindow:
         ea_reference: the reference model's, same shape.
         gram: E_i E_j per balance window, E_i the energy component i absorbs in it (J^2), (N, n_balances, C, C).
         cross: E_i R, R the energy-balance residual of the window, real minus reference (J^2), (N, n_balances, C).
+        balance: R per balance window (J), (N, n_balances).
         signals: the denoised measured signals at every sample, (N, nx, L + 1).
         noise: sum over the chunk of (raw - denoised)^2 and of raw^2 per measured signal, (N, 2, nx).
     """
@@ -67,6 +68,7 @@ class MonitorWindow:
     ea_reference: np.ndarray
     gram: np.ndarray
     cross: np.ndarray
+    balance: np.ndarray
     signals: np.ndarray
     noise: np.ndarray
 
@@ -201,7 +203,9 @@ class Monitor:
         cross = np.einsum("nis,ns->nsi", stored, residual)
         raw = measured[..., 1:]
         noise = np.stack([((raw - smooth[:n, :-1, 1:]) ** 2).sum(-1), (raw**2).sum(-1)], axis=1)
-        return MonitorWindow(ea=ea[:n], ea_reference=ea[n:], gram=gram, cross=cross, signals=smooth[:n, :-1], noise=noise)
+        return MonitorWindow(
+            ea=ea[:n], ea_reference=ea[n:], gram=gram, cross=cross, balance=residual, signals=smooth[:n, :-1], noise=noise
+        )
 
     def _signed_energy(self, power: np.ndarray, smooth: np.ndarray) -> np.ndarray:
         """Energy absorbed by every element in every sub-window (J, eq 3), (..., E, n_sub).
