@@ -29,10 +29,20 @@ from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of, draw_loads
 from ea_gym.diagnosis.features import frame_features
-from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow, add_sensor_noise
+from ea_gym.diagnosis.monitor import (
+    Monitor,
+    MonitorConfig,
+    MonitorWindow,
+    add_sensor_noise,
+)
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.models import SystemModel
-from ea_gym.prognosis import EAParameterEstimator, EstimatorConfig, ExtrapolationConfig, predict_end_of_life
+from ea_gym.prognosis import (
+    EAParameterEstimator,
+    EstimatorConfig,
+    ExtrapolationConfig,
+    predict_end_of_life,
+)
 
 
 @dataclass(frozen=True)
@@ -514,7 +524,11 @@ def build_chain(
 
 def classifier_for(model: SystemModel, rng: np.random.Generator, path: str | None = None) -> FaultClassifier:
     """The isolation network: from ``path``, else the one shipped for the model, else trained now."""
-    from ea_gym.diagnosis.training import load_shipped_classifier, shipped_classifier_path, train_isolation
+    from ea_gym.diagnosis.training import (
+        load_shipped_classifier,
+        shipped_classifier_path,
+        train_isolation,
+    )
 
     if path is not None:
         return FaultClassifier.load(path)

@@ -12,7 +12,11 @@ from ea_gym.metrics import alpha_lambda
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import PHMConfig, build_chain, measure, run_scenario
 from ea_gym.plant import run_model
-from ea_gym.prognosis import EAParameterEstimator, ExtrapolationConfig, predict_end_of_life
+from ea_gym.prognosis import (
+    EAParameterEstimator,
+    ExtrapolationConfig,
+    predict_end_of_life,
+)
 from ea_gym.reproduce import LOADS, phase_eol
 from ea_gym.scenario import load_scenario
 
