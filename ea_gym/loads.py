@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
+import numba
 import numpy as np
 
 
@@ -37,6 +38,48 @@ def _multisine(
     if derivative:
         return np.cos(angle) @ (amplitudes * omega)
     return np.sin(angle) @ amplitudes
+
+
+#: Samples between direct evaluations in ``multisine_on_grid``: the rotation's round-off grows by about
+#: 1e-16 per sample, so it stays below 1e-13 of each component's amplitude.
+_ROTATION_SPAN = 128
+
+
+@numba.njit(cache=True)
+def multisine_on_grid(t: np.ndarray, step: float, frequencies: np.ndarray, phases: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sum_i sin(2 pi f_i t + phi_i) and its time derivative (1/s) for N systems on uniform time grids.
+
+    Every ``_ROTATION_SPAN`` samples each term is evaluated directly; in between it is rotated by the
+    angle 2 pi f_i step, four multiplications in place of a sine and a cosine.
+
+    Args:
+        t: times (N, T) in s, row n spaced by ``step`` s.
+        frequencies: f (N, C) in Hz; phases: phi (N, C) in rad.
+
+    Returns:
+        the sums and their derivatives, both (N, T).
+    """
+    n_sys, n_samples = t.shape
+    # laid out (T, N), so that the inner loops run over systems and vectorize
+    total = np.zeros((n_samples, n_sys))
+    slope = np.zeros((n_samples, n_sys))
+    omega, sin_step, cos_step = np.empty(n_sys), np.empty(n_sys), np.empty(n_sys)
+    s, c = np.empty(n_sys), np.empty(n_sys)
+    for i in range(frequencies.shape[1]):
+        for n in range(n_sys):
+            omega[n] = 2.0 * math.pi * frequencies[n, i]
+            sin_step[n], cos_step[n] = math.sin(omega[n] * step), math.cos(omega[n] * step)
+        for k in range(n_samples):
+            if k % _ROTATION_SPAN == 0:
+                for n in range(n_sys):
+                    angle = t[n, k] * omega[n] + phases[n, i]
+                    s[n], c[n] = math.sin(angle), math.cos(angle)
+            total_k, slope_k = total[k], slope[k]
+            for n in range(n_sys):
+                total_k[n] += s[n]
+                slope_k[n] += omega[n] * c[n]
+                s[n], c[n] = s[n] * cos_step[n] + c[n] * sin_step[n], c[n] * cos_step[n] - s[n] * sin_step[n]
+    return np.ascontiguousarray(total.T), np.ascontiguousarray(slope.T)
 
 
 @dataclass(frozen=True)

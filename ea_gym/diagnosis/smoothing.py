@@ -3,15 +3,47 @@
 ``scipy.signal.savgol_filter`` with ``mode="interp"`` fits the edge polynomials row by row with a
 least-squares solve, which dominates when thousands of short rows are filtered per step. The filter is
 linear, so its edge rows are fixed matrices: they are taken once from ``savgol_filter`` itself
-applied to the identity, and the interior is a correlation with ``savgol_coeffs``. The result equals
-``savgol_filter(..., mode="interp")`` to round-off.
+applied to the identity, and the interior is a correlation with ``savgol_coeffs``. A compiled loop
+applies both row by row. The result equals ``savgol_filter(..., mode="interp")`` to round-off.
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
-from scipy.ndimage import correlate1d
 from scipy.signal import savgol_coeffs, savgol_filter
+
+
+# reassociation lets each dot product run as SIMD partial sums (2x faster); the order of the sums
+# still depends only on the window, so every row gives the same result in any batch
+@numba.njit(cache=True, fastmath={"reassoc", "contract"})
+def _filter_rows(x: np.ndarray, interior: np.ndarray, head: np.ndarray, tail: np.ndarray) -> np.ndarray:
+    """The filter on every row of x (rows, L).
+
+    Args:
+        interior: correlation coefficients (window,) for the outputs at least ``half`` samples from an end.
+        head, tail: (half, window) maps from the first (last) ``window`` samples to the first (last) ``half`` outputs.
+    """
+    rows, length = x.shape
+    half, window = head.shape
+    out = np.empty_like(x)
+    for r in range(rows):
+        xr, yr = x[r], out[r]
+        x_tail = xr[length - window :]
+        for i in range(half):
+            first = 0.0
+            last = 0.0
+            for j in range(window):
+                first += head[i, j] * xr[j]
+                last += tail[i, j] * x_tail[j]
+            yr[i] = first
+            yr[length - half + i] = last
+        for i in range(length - 2 * half):
+            acc = 0.0
+            for j in range(window):
+                acc += interior[j] * xr[i + j]
+            yr[half + i] = acc
+    return out
 
 
 class SavitzkyGolay:
@@ -28,19 +60,17 @@ class SavitzkyGolay:
             raise ValueError(f"window must be odd and above polyorder, got window={window}, polyorder={polyorder}")
         self.window = window
         self.half = window // 2
-        self._interior = {}
-        self._edges = {}
+        self._coefficients = {}
         identity = np.eye(window)
         for deriv in (0, 1):
-            # correlate1d takes the coefficients in signal order; savgol_coeffs gives them for convolution
-            self._interior[deriv] = savgol_coeffs(window, polyorder, deriv=deriv, delta=sample_period, use="dot")
-            self._edges[deriv] = savgol_filter(identity, window, polyorder, deriv=deriv, delta=sample_period, axis=0)
+            # use="dot" gives the coefficients in signal order, as the correlation takes them
+            interior = savgol_coeffs(window, polyorder, deriv=deriv, delta=sample_period, use="dot")
+            edges = savgol_filter(identity, window, polyorder, deriv=deriv, delta=sample_period, axis=0)
+            head, tail = np.ascontiguousarray(edges[: self.half]), np.ascontiguousarray(edges[-self.half :])
+            self._coefficients[deriv] = (interior, head, tail)
 
     def __call__(self, x: np.ndarray, deriv: int = 0) -> np.ndarray:
         if x.shape[-1] < self.window:
             raise ValueError(f"signals of {x.shape[-1]} samples are shorter than the filter ({self.window})")
-        out = correlate1d(x, self._interior[deriv], axis=-1, mode="constant")
-        edges = self._edges[deriv]
-        out[..., : self.half] = x[..., : self.window] @ edges[: self.half].T
-        out[..., -self.half :] = x[..., -self.window :] @ edges[-self.half :].T
-        return out
+        rows = np.ascontiguousarray(x, dtype=float).reshape(-1, x.shape[-1])
+        return _filter_rows(rows, *self._coefficients[deriv]).reshape(x.shape)

@@ -21,6 +21,7 @@ from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor, add_sensor_noise
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.env.costs import CostModel
+from ea_gym.loads import multisine_on_grid
 from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
 from ea_gym.threads import single_threaded_blas
@@ -218,12 +219,13 @@ class MaintenanceCore:
             s["load_phase"][i] = rng.uniform(0.0, 2.0 * math.pi, LOAD_COMPONENTS)
 
     def _load(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each system's load and its derivative at its times t (N, T): random-phase multisines."""
+        """Each system's load and its derivative at its times t (N, T), spaced by the sample period: random-phase multisines."""
+        if not np.allclose(t, t[:, :1] + np.arange(t.shape[1]) * self.h, rtol=1e-12, atol=0.0):
+            raise ValueError("the load is evaluated on grids spaced by the sample period")
         s = self._state
-        omega = 2.0 * math.pi * s["load_frequency"][:, None, :]
-        angle = t[..., None] * omega + s["load_phase"][:, None, :]
+        waves, slopes = multisine_on_grid(t, self.h, s["load_frequency"], s["load_phase"])
         amplitude = s["load_amplitude"][:, None]
-        return s["load_mean"][:, None] + amplitude * np.sin(angle).sum(-1), amplitude * (np.cos(angle) * omega).sum(-1)
+        return s["load_mean"][:, None] + amplitude * waves, amplitude * slopes
 
     # -- the step ---------------------------------------------------------------------------------
 
