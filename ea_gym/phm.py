@@ -51,6 +51,9 @@ class DetectorConfig:
 
     Attributes:
         window: span of the EA residual sums compared with the threshold (s).
+        balance_span: span of the energy-balance residual sum (s, at most the isolation frame): its
+            noise comes from the stored energies' end points and grows slower than a dissipator's
+            fault, so a longer span sees a smaller fault.
         persistence: consecutive steps above threshold that raise the alarm.
         margin: threshold = margin x the largest statistic seen in fault-free calibration runs.
         floor: smallest threshold (relative EA residual), for noise-free signals.
@@ -59,6 +62,7 @@ class DetectorConfig:
     """
 
     window: float = 5.0
+    balance_span: float = 20.0
     persistence: int = 3
     margin: float = 1.25
     floor: float = 1e-3
@@ -154,12 +158,15 @@ def dissipator_elements(monitor: Monitor) -> np.ndarray:
     return np.array(dissipators or monitor._component_index)
 
 
-def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, dissipators: np.ndarray) -> np.ndarray:
-    """Detection statistics from sums over one window: (..., E + 1).
+def relative_residuals(
+    ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, balance_reference: np.ndarray, dissipators: np.ndarray
+) -> np.ndarray:
+    """Detection statistics: (..., E + 1).
 
     Args:
-        ea, ea_reference: real and reference EA of every element (J), (..., E).
-        balance: the energy-balance residual, real minus reference (J), (...).
+        ea, ea_reference: real and reference EA of every element summed over the EA window (J), (..., E).
+        balance: the energy-balance residual, real minus reference, summed over the balance window (J), (...).
+        balance_reference: reference EA of every element over the balance window (J), (..., E).
         dissipators: element indices whose reference EA scales the balance: a dissipator's fault leaves
             that share of its dissipation unaccounted for, while barely changing any element's EA.
 
@@ -167,7 +174,7 @@ def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.nda
         (ea - ea_reference) / ea_reference per element, then balance / the dissipators' reference EA.
     """
     relative = (ea - ea_reference) / np.maximum(ea_reference, 1e-300)
-    dissipated = np.maximum(ea_reference[..., dissipators].sum(-1), 1e-300)
+    dissipated = np.maximum(balance_reference[..., dissipators].sum(-1), 1e-300)
     return np.concatenate([relative, (balance / dissipated)[..., None]], axis=-1)
 
 
@@ -206,6 +213,10 @@ class PHMChain:
         self.frame_steps = window_samples(config.frame, config.step)
         self.detect_subs = window_samples(config.detector.window, config.monitor.sub_window)
         self.detect_balances = window_samples(config.detector.window, config.monitor.balance_window)
+        self.balance_subs = window_samples(config.detector.balance_span, config.monitor.sub_window)
+        self.balance_count = window_samples(config.detector.balance_span, config.monitor.balance_window)
+        if config.detector.balance_span > config.frame:
+            raise ValueError(f"detector.balance_span ({config.detector.balance_span} s) must not exceed the frame ({config.frame} s)")
         self._dissipators = dissipator_elements(self.monitor)
         self.estimate_steps = window_samples(config.estimator.window, config.step)
         self.median_length = config.estimator.median
@@ -312,10 +323,12 @@ class PHMChain:
         s = self.state
         statistic = relative_residuals(
             s["ea"][..., -self.detect_subs :].sum(-1), s["ea_reference"][..., -self.detect_subs :].sum(-1),
-            s["balance"][..., -self.detect_balances :].sum(-1), self._dissipators,
+            s["balance"][..., -self.balance_count :].sum(-1), s["ea_reference"][..., -self.balance_subs :].sum(-1),
+            self._dissipators,
         )
-        seen = np.minimum(s["steps"] * (self.step_samples // self.monitor.n_sub), self.detect_subs)
-        return np.where((seen >= self.detect_subs)[:, None], statistic, 0.0)
+        seen = s["steps"] * (self.step_samples // self.monitor.n_sub)
+        full = np.append(np.full(statistic.shape[1] - 1, self.detect_subs), self.balance_subs)
+        return np.where(seen[:, None] >= full, statistic, 0.0)
 
     def _classify(self) -> np.ndarray:
         """The newest frame's network class probabilities (N, K); updates their running average."""
@@ -471,10 +484,20 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
     # the balance windows are whole sub-windows: spread each over its sub-windows to align the sums
     per_sub = window_samples(config.monitor.balance_window, config.monitor.sub_window)
     balance = np.concatenate([w.balance for w in windows], -1).repeat(per_sub, -1) / per_sub
-    series = [np.concatenate([w.ea for w in windows], -1), np.concatenate([w.ea_reference for w in windows], -1), balance]
-    ea, ref, balance = (sliding_window_view(x, subs, axis=-1).sum(-1) for x in series)
-    statistic = relative_residuals(np.moveaxis(ea, -1, 0), np.moveaxis(ref, -1, 0), np.moveaxis(balance, -1, 0), dissipator_elements(monitor))
-    return np.maximum(d.margin * np.abs(statistic).max(axis=(0, 1)), d.floor)
+    ea, ref = np.concatenate([w.ea for w in windows], -1), np.concatenate([w.ea_reference for w in windows], -1)
+    balance_subs = window_samples(d.balance_span, config.monitor.sub_window)
+
+    def sums(x: np.ndarray, span: int) -> np.ndarray:  # every window of ``span`` sub-windows, first axis
+        return np.moveaxis(sliding_window_view(x, span, axis=-1).sum(-1), -1, 0)
+
+    # each statistic's threshold is its own maximum: the EA and balance windows need not be aligned
+    dissipators = dissipator_elements(monitor)
+    ea_statistic = relative_residuals(sums(ea, subs), sums(ref, subs), sums(balance, subs), sums(ref, subs), dissipators)
+    balance_statistic = relative_residuals(
+        sums(ea, balance_subs), sums(ref, balance_subs), sums(balance, balance_subs), sums(ref, balance_subs), dissipators
+    )
+    largest = np.append(np.abs(ea_statistic[..., :-1]).max(axis=(0, 1)), np.abs(balance_statistic[..., -1]).max())
+    return np.maximum(d.margin * largest, d.floor)
 
 
 @dataclass(frozen=True)
