@@ -274,11 +274,12 @@ class Periodic(RulePolicy):
 
 class RulThreshold(RulePolicy):
     """Condition-based maintenance on the PHM outputs: when the RUL interval's lower bound
-    (``observation["rul"][1]``, s) is below ``threshold`` and the diagnosis names a component (the
-    argmax of ``observation["diagnosis"]`` is not "none"), replace that component (``action="replace"``)
-    or apply a corrective action on it for this step (``action="corrective"``); otherwise carry on.
+    (``observation["rul"][1]``, s) is below ``threshold`` and the diagnosis believes in some fault,
+    replace the component it believes most among the fault classes (``action="replace"``) or apply a
+    corrective action on it for this step (``action="corrective"``); otherwise carry on. A diagnosis
+    that is all "none" never acts.
 
-    ``threshold=math.inf`` acts as soon as a component is diagnosed, whatever its RUL. Needs the keys
+    ``threshold=math.inf`` acts as soon as the diagnosis believes in a fault (after the chain's alarm), whatever its RUL. Needs the keys
     ``diagnosis`` and ``rul``: obs_mode ``"phm"`` (estimated) or ``"oracle"`` (true; see ``Oracle``).
 
     Args:
@@ -319,9 +320,11 @@ class RulThreshold(RulePolicy):
             )
         if rul.shape[1] != 3:
             raise ValueError(f"observation key 'rul' must hold [point, low, high], got {rul.shape[1]} values")
-        named = np.argmax(diagnosis, axis=1)
+        # the suspect is the fault class the chain believes most; "none" may still outweigh it (a
+        # network unsure of a young fault), but a finite RUL already says the chain tracks a fault
+        named = 1 + np.argmax(diagnosis[:, 1:], axis=1)
         down = obs["maintenance_in_progress"][:, 0] > 0.5
-        act = ~down & (named > 0) & (rul[:, 1] < self.threshold)
+        act = ~down & (diagnosis[:, 1:].sum(axis=1) > 0) & (rul[:, 1] < self.threshold)
         return np.where(act, self._class_action[named], 0), None
 
     def __repr__(self) -> str:

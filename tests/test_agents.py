@@ -19,8 +19,9 @@ CORRECT = {c: 1 + i for i, c in enumerate(COMPONENTS)}
 
 def obs(diagnosed="none", rul_low=1000.0, since=0.0, down=0.0, mode="phm"):
     """One hand-built observation of the spring-mass-damper env (float32 arrays, the env's shapes)."""
-    diagnosis = np.full(4, 0.02, np.float32)
-    diagnosis[CLASSES.index(diagnosed)] = 0.94
+    # the chain's diagnosis is exactly "none" before its alarm, and spreads its belief afterwards
+    diagnosis = np.zeros(4, np.float32) if diagnosed == "none" else np.full(4, 0.02, np.float32)
+    diagnosis[CLASSES.index(diagnosed)] = 1.0 if diagnosed == "none" else 0.94
     o = {
         "ea": np.ones(4, np.float32),
         "eai": np.full(3, 1 / 3, np.float32),
@@ -72,7 +73,11 @@ def test_rul_threshold_replaces_the_diagnosed_component_below_the_threshold(cls)
         assert act(policy, obs(c, rul_low=19.0)) == REPLACE[c]
         assert act(policy, obs(c, rul_low=21.0)) == 0  # above the threshold
         assert act(policy, obs(c, rul_low=19.0, down=1.0)) == 0  # orders are ignored while down
-    assert act(policy, obs("none", rul_low=0.0)) == 0  # no component named: carry on
+    assert act(policy, obs("none", rul_low=0.0)) == 0  # no fault believed: carry on
+    # "none" outweighing the suspect does not hold it back: a finite RUL says the chain tracks that fault
+    o = obs("b", rul_low=5.0)
+    o["diagnosis"] = np.array([0.6, 0.1, 0.05, 0.25], np.float32)
+    assert act(policy, o) == REPLACE["b"]
     # the lower bound of the interval decides, not the point estimate
     o = obs("m", rul_low=15.0)
     o["rul"] = np.array([25.0, 15.0, 40.0], np.float32)
