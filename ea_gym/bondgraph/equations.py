@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ea_gym.bondgraph.causality import Causality, assign_causality
@@ -184,6 +185,31 @@ class StateSpaceModel:
         Cy, Dy = X[..., : self.n_states], X[..., self.n_states :]
         return LinearMatrices(A=self._S @ Cy, B=self._S @ Dy, Cy=Cy, Dy=Dy)
 
+    def element_bonds(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray]:
+        """Where every non-junction element's effort and flow sit among the bond values (..., 2 n_bonds).
+
+        Returns:
+            the element names in the graph's order; the index of each one's effort and of its flow in
+            the bond values; the sign that turns that bond's flow into the element's (see ``element_signals``).
+        """
+        if not hasattr(self, "_element_bonds"):
+            names, efforts, flows, signs = [], [], [], []
+            for name, element in self.graph.elements.items():
+                if element.kind.is_junction:
+                    continue
+                if element.kind.is_two_port:
+                    i, sign = self.graph.two_port_bonds(name)[0], 1.0
+                else:
+                    i, sign = self.bond_of[name], self.flow_sign[name]
+                    if element.kind.is_source:
+                        sign = -sign
+                names.append(name)
+                efforts.append(i)
+                flows.append(self.n_bonds + i)
+                signs.append(sign)
+            self._element_bonds = (tuple(names), np.array(efforts, dtype=np.intp), np.array(flows, dtype=np.intp), np.array(signs))
+        return self._element_bonds
+
     def element_signals(self, bond_values: np.ndarray) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
         """Split bond efforts and flows (..., 2 n_bonds) into per-element effort and flow.
 
@@ -192,15 +218,52 @@ class StateSpaceModel:
         """
         effort: dict[str, np.ndarray] = {}
         flow: dict[str, np.ndarray] = {}
-        for name, element in self.graph.elements.items():
-            if element.kind.is_junction:
-                continue
-            if element.kind.is_two_port:
-                i, sign = self.graph.two_port_bonds(name)[0], 1.0
-            else:
-                i, sign = self.bond_of[name], self.flow_sign[name]
-                if element.kind.is_source:
-                    sign = -sign
-            effort[name] = bond_values[..., i]
-            flow[name] = sign * bond_values[..., self.n_bonds + i]
+        for name, e, f, sign in zip(*self.element_bonds()):
+            effort[name] = bond_values[..., e]
+            flow[name] = float(sign) * bond_values[..., f]
         return effort, flow
+
+
+@numba.njit(cache=True)
+def bond_powers(
+    signals: np.ndarray, scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray, effort: np.ndarray, flow: np.ndarray, sign: np.ndarray
+) -> np.ndarray:
+    """Effort times flow of chosen bond ends at every sample, from energy variables and one input.
+
+    Args:
+        signals: (M, nx + 1, L): nx signals, x = ``scale`` x signal, then the input u.
+        Cy, Dy: (2 n_bonds, nx) and (2 n_bonds,): bond values z = Cy x + Dy u.
+        effort, flow, sign: (E,): element e's power is z[effort[e]] (sign[e] z[flow[e]]).
+
+    Returns:
+        (M, E, L); the same arithmetic as the matrix product summed over x in order, then the input's term.
+    """
+    M, channels, L = signals.shape
+    nx = channels - 1
+    E = len(effort)
+    out = np.empty((M, E, L))
+    # loops over time innermost, which vectorize; ze, zf accumulate as z = sum_s Cy x_s + Dy u does
+    x = np.empty((nx, L))
+    ze = np.empty(L)
+    zf = np.empty(L)
+    for m in range(M):
+        for s in range(nx):
+            c = scale[s]
+            for t in range(L):
+                x[s, t] = signals[m, s, t] * c
+        u = signals[m, nx]
+        for e in range(E):
+            a, b = effort[e], flow[e]
+            ze[:] = 0.0
+            zf[:] = 0.0
+            for s in range(nx):
+                ca, cb = Cy[a, s], Cy[b, s]
+                xs = x[s]
+                for t in range(L):
+                    ze[t] += ca * xs[t]
+                    zf[t] += cb * xs[t]
+            da, db, sg = Dy[a], Dy[b], sign[e]
+            o = out[m, e]
+            for t in range(L):
+                o[t] = (ze[t] + da * u[t]) * (sg * (zf[t] + db * u[t]))
+    return out

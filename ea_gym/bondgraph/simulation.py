@@ -317,6 +317,57 @@ def simulate_linear(
         return x[0], mats.bond_values(x, u[None])[0]
 
 
+@numba.njit(cache=True)
+def _simulate_hermite(
+    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray
+) -> np.ndarray:
+    """``propagate`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s and the Hermite
+    coefficients of ``hermite_coefficients`` computed on the fly, in the same arithmetic (same result)."""
+    n_sys, n_samples, nu = u.shape
+    nx = Phi.shape[1]
+    m = Gamma.shape[2]
+    h2 = h * h
+    x = np.empty((n_sys, n_samples, nx))
+    w = np.empty(m)
+    for s in range(n_sys):
+        P, G = Phi[index[s]], Gamma[index[s]]
+        x[s, 0] = x0[s]
+        for k in range(n_samples - 1):
+            for c in range(nu):
+                u0, u1, d0, d1 = u[s, k, c], u[s, k + 1, c], du[s, k, c], du[s, k + 1, c]
+                slope = (u1 - u0) / h
+                c2 = (3.0 * slope - 2.0 * d0 - d1) / h
+                c3 = (d0 + d1 - 2.0 * slope) / h2
+                w[c] = u0
+                w[nu + c] = d0
+                w[2 * nu + c] = 2.0 * c2
+                w[3 * nu + c] = 6.0 * c3
+            for i in range(nx):
+                acc = 0.0
+                for j in range(nx):
+                    acc += P[i, j] * x[s, k, j]
+                for j in range(m):
+                    acc += G[i, j] * w[j]
+                x[s, k + 1, i] = acc
+    return x
+
+
+def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The distinct rows of ``theta`` (N, P) and, for every row, the index of its copy among them.
+
+    Rows are compared bit for bit, so a row and its representative give the same result in any
+    computation. Batches share few parameter sets (every reference row and every healthy plant row
+    holds the nominal values), and each distinct set needs one matrix exponential only.
+    """
+    theta = np.ascontiguousarray(theta, dtype=float)
+    n = len(theta)
+    if n <= 1:
+        return theta, np.zeros(n, dtype=np.intp)
+    keys = theta.view(np.dtype((np.void, theta.dtype.itemsize * theta.shape[1]))).ravel()
+    _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+    return theta[first], inverse.reshape(n)
+
+
 def simulate_batch(
     model: StateSpaceModel, sample_period: float, u: np.ndarray, du: np.ndarray, theta: np.ndarray, x0: np.ndarray
 ) -> np.ndarray:
@@ -328,10 +379,21 @@ def simulate_batch(
         x0: initial energy variables, (N, nx).
 
     Returns:
-        states at every sample, (N, T + 1, nx).
+        states at every sample, (N, T + 1, nx); the same as ``propagate`` of ``hermite_coefficients``
+        with each system's own discretization, computed once per distinct parameter set.
     """
+    u, du, x0 = np.asarray(u, dtype=float), np.asarray(du, dtype=float), np.asarray(x0, dtype=float)
+    n, nx = len(theta), model.n_states
+    if u.ndim != 3 or du.shape != u.shape or u.shape[0] != n or u.shape[2] != model.n_inputs or x0.shape != (n, nx):
+        raise ValueError(
+            f"simulate_batch: u and du must be (N, T + 1, {model.n_inputs}) and x0 (N, {nx}) for N = {n} parameter rows; "
+            f"got u {u.shape}, du {du.shape}, x0 {x0.shape}"
+        )
     with single_threaded_blas():
-        mats = model.matrices(theta)
+        distinct, index = unique_rows(theta)
+        mats = model.matrices(distinct)
         step = discretize(mats.A, mats.B, sample_period)
-        d = Discretization(step.Phi[:, None], step.Gamma[:, None])
-        return propagate(d, hermite_coefficients(u, du, sample_period), x0)
+        return _simulate_hermite(
+            np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma), index,
+            np.ascontiguousarray(u), np.ascontiguousarray(du), float(sample_period), np.ascontiguousarray(x0),
+        )

@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ea_gym.bondgraph.elements import Kind
+from ea_gym.bondgraph.equations import bond_powers
 from ea_gym.diagnosis.features import Frame
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
 from ea_gym.energy import _interval_activity, _sum_windows, window_samples
@@ -162,17 +163,35 @@ class Monitor:
         through the same linear filter as the measurements, so the filtered signals still obey the
         model's equations and the nominal energy balance holds exactly in a fault-free run.
         """
-        smooth = self.filter(signals)[..., start:]
+        # the outputs from ``start`` on need the samples from ``start - half`` on only: the filter's
+        # interior and end rows give them exactly as on the whole signal
+        half = self.filter.half
+        skip = start - half if start >= half and signals.shape[-1] - start >= half + 1 else 0
+        lead, channels = signals.shape[:-2], signals.shape[-2]
+        rows = signals[..., skip:].reshape((-1, channels, signals.shape[-1] - skip))
+        cut = start - skip
+        flat = np.empty(rows.shape[:-1] + (rows.shape[-1] - cut,))
+        flat[:, :-1] = self.filter(rows[:, :-1])[..., cut:]
+        # the source's signal is often the same in consecutive rows (the candidates of one system): filtered once
+        load = rows[:, -1]
+        fresh = np.ones(len(load), dtype=bool)
+        fresh[1:] = np.any(load[1:] != load[:-1], axis=-1)
+        if np.count_nonzero(fresh) < 0.75 * len(load):
+            flat[:, -1] = self.filter(load[fresh])[np.cumsum(fresh) - 1, cut:]
+        else:
+            flat[:, -1] = self.filter(load)[:, cut:]
+        smooth = flat.reshape(lead + flat.shape[-2:])
         inertia_channels = [j for j, _ in self._inertance.values()]
-        slope = self.filter(signals[..., inertia_channels, :], deriv=1)[..., start:]  # only I laws differentiate
-        u = smooth[..., -1, :]
-        states = smooth[..., :-1, :] * self._to_state[:, None]
-        bonds = np.einsum("bs,...st->...bt", self._Cy, states) + self._Dy[:, 0][:, None] * u[..., None, :]
-        effort, flow = self.model.state_space.element_signals(np.moveaxis(bonds, -2, -1))
-        power = {name: effort[name] * flow[name] for name in effort}
+        slope = self.filter(rows[:, inertia_channels], deriv=1)[..., cut:].reshape(lead + (len(inertia_channels), -1))  # only I laws differentiate
+        names, effort, flow, sign = self.model.state_space.element_bonds()
+        power = bond_powers(flat, self._to_state, self._Cy, np.ascontiguousarray(self._Dy[:, 0]), effort, flow, sign)
+        power = power.reshape(lead + power.shape[-2:])
+        order = [names.index(name) for name in self.elements]
+        if order != list(range(len(names))):
+            power = power[..., order, :]
         for k, (name, (j, inertance)) in enumerate(self._inertance.items()):
-            power[name] = inertance * smooth[..., j, :] * slope[..., k, :]
-        return np.stack([power[name] for name in self.elements], axis=-2), smooth
+            power[..., self.elements.index(name), :] = inertance * smooth[..., j, :] * slope[..., k, :]
+        return power, smooth
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray) -> MonitorWindow:
         """Process one chunk of L intervals (L + 1 samples, the first shared with the previous chunk).

@@ -14,11 +14,12 @@ from typing import Any
 
 import numpy as np
 
+from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import simulate_batch
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
-from ea_gym.diagnosis.monitor import Monitor, add_sensor_noise
+from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.env.costs import CostModel
 from ea_gym.loads import multisine_on_grid
@@ -159,6 +160,12 @@ class MaintenanceCore:
         self.monitor = self.chain.monitor if self.chain is not None else Monitor(model, self.h, PHMConfig().monitor, n_systems)
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
+        # the sensors' measurement matrices are diagonal: 1 / I on the momentum of each I element, 1 elsewhere
+        self._measured_gain = np.diagonal(self.monitor.measurement_matrix(self.nominal)).copy()
+        self._inertia_states = np.array(
+            [j for j, name in enumerate(model.state_names) if model.graph.elements[name].kind is Kind.I], dtype=int
+        )
+        self._inertia_parameters = np.array([model.parameter_names.index(model.state_names[j]) for j in self._inertia_states], dtype=int)
         self._corrective_speed = config.corrective_rate * (self.limits[:, 1] - self.limits[:, 0])
         self.action_meanings = (
             "carry on", *(f"corrective action on {c}" for c in self.components), *(f"replace {c}" for c in self.components)
@@ -259,9 +266,9 @@ class MaintenanceCore:
             costs["corrective"][i] += c.corrective
             events[i].append(f"corrective action on {self.components[d]}")
         s["corrective_direction"][~corrective] = 0.0
-        for i in np.flatnonzero(replace):
-            self._replace(i, actions[i] - 1 - k, c.replace_downtime, rngs, events)
-            costs["replacement"][i] += c.replacement
+        replaced = np.flatnonzero(replace)
+        self._replace(replaced, actions[replaced] - 1 - k, c.replace_downtime, rngs, events)
+        costs["replacement"][replaced] += c.replacement
 
         running = s["down"] == 0
         wearing = s["theta"][:, self._wearing_index]
@@ -273,12 +280,13 @@ class MaintenanceCore:
         low, high = self.limits[:, 0], self.limits[:, 1]
         values = s["theta"][:, self._component_index]
         failed = running & np.any((values < low) | (values > high), axis=1)
-        for i in np.flatnonzero(failed):
-            costs["failure"][i] += c.failure
-            d = int(np.argmax(np.maximum(low - values[i], values[i] - high)))
+        broken = np.flatnonzero(failed)
+        costs["failure"][broken] += c.failure
+        culprits = np.argmax(np.maximum(low - values[broken], values[broken] - high), axis=1)
+        for i, d in zip(broken, culprits):
             events[i].append(f"failure: {self.components[d]} = {values[i, d]:.4g} outside {tuple(self.limits[d])}")
-            if self.config.continue_after_failure:
-                self._replace(i, d, c.failure_downtime, rngs, events)
+        if self.config.continue_after_failure:
+            self._replace(broken, culprits, c.failure_downtime, rngs, events)
         costs["lost_production"] += np.where(s["down"] > 0, c.lost_production, 0.0)
         s["down"] = np.maximum(s["down"] - 1, 0)
         s["since_maintenance"] = np.where(corrective | replace | failed, 0.0, s["since_maintenance"] + dt)
@@ -321,22 +329,37 @@ class MaintenanceCore:
             "events": [],
         }
 
-    def _replace(self, i: int, d: int, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[str]]) -> None:
-        """Put a new component d in system i: nominal value, downtime, a new fault if it was the faulty one."""
+    def _replace(
+        self, systems: np.ndarray, components: np.ndarray, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[str]]
+    ) -> None:
+        """Put a new component ``components[k]`` in system ``systems[k]`` (distinct systems): nominal value,
+        downtime, a new fault where it was the faulty one.
+
+        The systems are reset together; each draws only from its own generator, as when replaced one by one.
+        """
+        if len(systems) == 0:
+            return
         s = self._state
-        s["theta"][i, self._component_index[d]] = self.nominal[self._component_index[d]]
-        s["down"][i] = downtime
-        s["plant"][i] = 0.0  # the machine is stopped and restarted
-        s["reference"][i] = 0.0
+        components = np.asarray(components, dtype=int)
+        parameters = self._component_index[components]
+        s["theta"][systems, parameters] = self.nominal[parameters]
+        s["down"][systems] = downtime
+        s["plant"][systems] = 0.0  # the machine is stopped and restarted
+        s["reference"][systems] = 0.0
         mask = np.zeros(self.n, dtype=bool)
-        mask[i] = True
-        if self.wear_components[self.wear.faulty[i]] == self.components[d]:  # the faulty one: a new fault is drawn
-            self.wear.start(rngs, s["clock"], mask)
+        mask[systems] = True
+        # the faulty one: a new fault is drawn
+        faulty = self._wearing_index[self.wear.faulty[systems]] == parameters
+        if np.any(faulty):
+            fresh = np.zeros(self.n, dtype=bool)
+            fresh[systems[faulty]] = True
+            self.wear.start(rngs, s["clock"], fresh)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask)
-        events[i].append(f"replacement of {self.components[d]} ({downtime} steps down)")
+        for i, d in zip(systems, components):
+            events[i].append(f"replacement of {self.components[d]} ({downtime} steps down)")
 
     @property
     def wear_components(self) -> tuple[str, ...]:
@@ -347,15 +370,21 @@ class MaintenanceCore:
         s = self._state
         t = s["operation"][:, None] + np.arange(self.samples + 1) * self.h
         u, du = self._load(t)
-        space = self.model.state_space
-        nominal = np.tile(self.nominal, (self.n, 1))
-        plant = simulate_batch(space, self.h, u[..., None], du[..., None], s["theta"], s["plant"])
-        reference = simulate_batch(space, self.h, u[..., None], du[..., None], nominal, s["reference"])
-        s["plant"], s["reference"] = plant[:, -1], reference[:, -1]
+        n = self.n
+        # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
+        theta = np.concatenate([s["theta"], np.broadcast_to(self.nominal, s["theta"].shape)])
+        loads = np.concatenate([u, u])[..., None]
+        rates = np.concatenate([du, du])[..., None]
+        states = simulate_batch(self.model.state_space, self.h, loads, rates, theta, np.concatenate([s["plant"], s["reference"]]))
+        s["plant"], s["reference"] = states[:n, -1], states[n:, -1]
         s["operation"] = s["operation"] + self.config.window
-        measured = np.einsum("nij,ntj->nit", self.monitor.measurement_matrix(s["theta"]), plant)
-        measured = np.stack([add_sensor_noise(measured[i], self.config.noise, rngs[i]) for i in range(self.n)])
-        expected = np.einsum("ij,ntj->nit", self.monitor.measurement_matrix(self.nominal), reference)
+        # the measurement matrices are diagonal: a product per state equals the matrix product exactly
+        gain = np.tile(self._measured_gain, (2 * n, 1))
+        gain[:n, self._inertia_states] = 1.0 / s["theta"][:, self._inertia_parameters]
+        signals = np.empty((2 * n, states.shape[2], states.shape[1]))
+        np.multiply(states.transpose(0, 2, 1), gain[:, :, None], out=signals)
+        measured = self._sensor_noise(signals[:n], rngs)
+        expected = signals[n:]
         if self.chain is not None:
             status = self.chain.update(measured, expected, u, du)
             return {
@@ -367,6 +396,20 @@ class MaintenanceCore:
         components = np.array([self.elements.index(c) for c in self.rco])
         eai = np.stack(list(activity_index(dict(enumerate(ea[:, components].T))).values()), axis=1)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
+
+    def _sensor_noise(self, clean: np.ndarray, rngs: Sequence[np.random.Generator]) -> np.ndarray:
+        """``add_sensor_noise`` on every system's signals (N, nx, T), system i drawing from ``rngs[i]``.
+
+        The same numbers as calling it system by system, in one array operation but for the draws.
+        """
+        fraction = self.config.noise
+        if fraction == 0:
+            return clean
+        rms = np.sqrt(np.mean(clean**2, axis=-1, keepdims=True))
+        noise = np.empty_like(clean)
+        for i in range(len(clean)):
+            rngs[i].standard_normal(out=noise[i])
+        return clean + fraction * rms * noise
 
     def _idle_outputs(self) -> dict[str, np.ndarray]:
         """Outputs before the first step (or while a machine is down): no activity, nothing known."""
