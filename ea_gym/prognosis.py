@@ -4,7 +4,8 @@ Estimation inverts Energy Activity window by window. For a window [t0, t1], cand
 the isolated parameter are simulated from the measured state at t0 - c under the measured load (c is
 the smoothing context), their signals go through the same denoising and nominal laws as the
 measurements, and the candidate whose components' EA and energy balance over [t0, t1] match the
-measured ones best (in relative least squares) is refined on a finer grid. This uses eq 10's ingredients without linearising
+measured ones best (in relative least squares) is refined on finer grids, then to the vertex of the
+parabola through it and its neighbours. This uses eq 10's ingredients without linearising
 them: dS/dphi is the model's own response to phi, dEA/dS the component's constitutive law. It is
 preferred to integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors
 do not accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the
@@ -36,11 +37,12 @@ class EstimatorConfig:
 
     Attributes:
         window: inversion window t1 - t0 (s).
-        grid: candidates per pass.
+        grid: candidates per pass from the full range.
         passes: passes from the full range (each narrows the grid to two steps around the best candidate).
         margin: how far beyond the safe limits the first grid reaches, as a fraction of their span.
         warm_span: half-width of the first grid around the previous estimate, fraction of the safe
             span, when there is one (parameters change little from one window to the next).
+        warm_grid: candidates per pass from a warm start.
         warm_passes: passes from a warm start.
         median: length of the (causal) median filter over successive estimates (paper 4.4).
         balance_share: the energy-balance mismatch is relative to the dissipators' EA plus this share of
@@ -53,7 +55,8 @@ class EstimatorConfig:
     passes: int = 4
     margin: float = 0.5
     warm_span: float = 0.05
-    warm_passes: int = 2
+    warm_grid: int = 5
+    warm_passes: int = 1
     median: int = 3
     balance_share: float = 0.2
 
@@ -110,12 +113,11 @@ class EAParameterEstimator:
         theta = np.repeat(self.model.parameter_vector()[None, None], n, 0).repeat(g, 1)
         theta[np.arange(n), :, parameter_index] = values
         theta = theta.reshape(n * g, -1)
-        to_state = 1.0 / np.diagonal(self.monitor.measurement_matrix(theta), axis1=-2, axis2=-1)
-        x0 = np.repeat(start, g, 0) * to_state
+        to_signal = np.diagonal(self.monitor.measurement_matrix(theta), axis1=-2, axis2=-1)
+        x0 = np.repeat(start, g, 0) / to_signal
         uu = np.repeat(u, g, 0)[..., None]
         states = simulate_batch(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0)
-        signals = np.einsum("nij,ntj->nit", self.monitor.measurement_matrix(theta), states)
-        signals = np.concatenate([signals, uu.transpose(0, 2, 1)], axis=1)
+        signals = np.concatenate([states * to_signal[:, None], uu], axis=-1).transpose(0, 2, 1)
         power, _ = self.monitor.powers(signals, self.context)
         return self.signature(power).reshape(n, g, -1)
 
@@ -147,31 +149,38 @@ class EAParameterEstimator:
         warm = np.zeros(len(parameter_index), dtype=bool) if previous is None else np.isfinite(previous)
         if np.any(warm):
             spans = np.array([np.subtract(*self.model.safe_limits[names[j]][::-1]) for j in parameter_index[warm]])
-            offsets = np.linspace(-1.0, 1.0, self.config.grid) * self.config.warm_span
-            grids[warm] = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
+            offsets = np.linspace(-1.0, 1.0, self.config.warm_grid) * self.config.warm_span
+            warm_grids = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
         # warm and cold systems are searched apart, so that a system's estimate never depends on the batch
         estimate, fit = np.empty(len(parameter_index)), np.empty(len(parameter_index))
-        for rows, passes in ((warm, self.config.warm_passes), (~warm, self.config.passes)):
+        for rows, start_grids, passes in ((warm, warm_grids if np.any(warm) else None, self.config.warm_passes),
+                                          (~warm, grids[~warm], self.config.passes)):
             if np.any(rows):
                 estimate[rows], fit[rows] = self._search(
-                    parameter_index[rows], grids[rows], start[rows], u[rows], du[rows], measured[rows], passes
+                    parameter_index[rows], start_grids, start[rows], u[rows], du[rows], measured[rows], passes
                 )
         return estimate, fit
 
     def _search(self, parameter_index, grids, start, u, du, measured, passes: int) -> tuple[np.ndarray, np.ndarray]:
         """Grid search refined ``passes`` times; each pass narrows to one step either side of the best.
 
-        Returns the best candidate of the last pass and its cost."""
+        Returns the vertex of the parabola through the last pass's best candidate and its neighbours
+        (the cost is smooth in the parameter near its minimum), and the best candidate's cost."""
         scale = self.mismatch_scale(measured)[:, None, :]
         rows = np.arange(len(grids))
+        size = grids.shape[1]
         for _ in range(passes):
             mismatch = self._candidate_signature(parameter_index, grids, start, u, du) - measured[:, None, :]
             cost = ((mismatch / scale) ** 2).sum(-1)
             step = grids[:, 1] - grids[:, 0]
             best = np.argmin(cost, axis=1)
             centre = grids[rows, best]
-            grids = np.maximum(centre[:, None] + np.linspace(-1.0, 1.0, self.config.grid) * step[:, None], 1e-6 * grids[:, -1:])
-        return centre, cost[rows, best]
+            grids = np.maximum(centre[:, None] + np.linspace(-1.0, 1.0, size) * step[:, None], 1e-6 * grids[:, -1:])
+        left, right = cost[rows, np.maximum(best - 1, 0)], cost[rows, np.minimum(best + 1, size - 1)]
+        curvature = left - 2.0 * cost[rows, best] + right
+        inside = (best > 0) & (best < size - 1) & (curvature > 0)
+        shift = np.where(inside, 0.5 * (left - right) / np.where(inside, curvature, 1.0), 0.0)
+        return np.maximum(centre + shift * step, 1e-6 * grids[:, -1]), cost[rows, best]
 
 
 @dataclass(frozen=True)
