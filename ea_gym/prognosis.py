@@ -260,15 +260,27 @@ def predict_end_of_life(
     residual = y - np.polyval(coefficients, t - t_now)
     dof = max(len(t) - config.degree - 1, 1)
     covariance = covariance * max(float(residual @ residual) / dof, 1e-300)
-    ahead = np.linspace(0.0, config.horizon, 8001)
-    powers = np.vander(ahead, config.degree + 1)
-    mean = powers @ coefficients
-    spread = norm.ppf(0.5 + config.confidence / 2) * np.sqrt(np.einsum("ti,ij,tj->t", powers, covariance, powers))
+    z = norm.ppf(0.5 + config.confidence / 2)
     slope = np.polyval(np.polyder(coefficients), 0.0)
     limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)
-    eol = _first_crossing(ahead, mean, level, below)
-    earliest = _first_crossing(ahead, mean - spread if below else mean + spread, level, below)
-    latest = _first_crossing(ahead, mean + spread if below else mean - spread, level, below)
+
+    def crossing(side: float) -> float:
+        """First time ahead (s) at which the trend + side x its band reaches the limit; inf if never."""
+        def curve(ahead: np.ndarray) -> np.ndarray:
+            powers = np.vander(ahead, config.degree + 1)
+            return powers @ coefficients + side * z * np.sqrt(np.einsum("ti,ij,tj->t", powers, covariance, powers))
+
+        # a coarse grid over the horizon, then a fine one over the interval where the curve first gets there
+        coarse = np.linspace(0.0, config.horizon, 201)
+        first = _first_crossing(coarse, curve(coarse), level, below)
+        if math.isinf(first) or first == 0.0:
+            return first
+        i = int(np.searchsorted(coarse, first))
+        fine = np.linspace(coarse[i - 1], coarse[i], 41)
+        return _first_crossing(fine, curve(fine), level, below)
+
+    eol = crossing(0.0)
+    earliest, latest = crossing(-1.0 if below else 1.0), crossing(1.0 if below else -1.0)
     if math.isinf(eol):
         limit = None
     return EndOfLife(t_now, t_now + eol, t_now + earliest, t_now + latest, limit)

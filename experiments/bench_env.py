@@ -31,8 +31,9 @@ What it measures
        wall time per call path; a stage's time is its inclusive time minus that of the wrapped calls
        inside it, so the rows add up to the measured ``env.step`` time. Rows: load signal, plant +
        reference simulation (``ea_gym.env.core.simulate_batch``), measurement matrices, sensor noise,
-       EA monitor (``Monitor.update``), detection (``PHMChain._statistic``), isolation
-       (``_isolate``: frame, features, torch), EA inversion (``_estimate``), EoL extrapolation
+       EA monitor (``Monitor.update``), detection (``PHMChain._statistic``), isolation network
+       (``_classify``: frame, features, torch), isolation belief (``_isolate``), EA inversion
+       (``_estimate``), EoL extrapolation
        (``_prognose``), chain bookkeeping, observation (``MaintenanceCore._observe``), the rest of the
        core step, the env's own ``step`` and Gymnasium's wrappers (``env.step`` minus
        ``env.unwrapped.step``). A detailed call tree follows. The timers add about 0.5 us per wrapped
@@ -287,7 +288,7 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
         (core, "_true_rul", "_true_rul"),
         (core.wear, "advance", "wear.advance"),
         (core_module, "simulate_batch", "simulate_batch"),
-        (core_module, "add_sensor_noise", "add_sensor_noise"),
+        (core, "_sensor_noise", "_sensor_noise"),
         (monitor, "measurement_matrix", "measurement_matrix"),
         (monitor, "update", "monitor.update"),
         (monitor, "powers", "monitor.powers"),
@@ -296,6 +297,7 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
         targets += [
             (chain, "update", "chain.update"),
             (chain, "_statistic", "_statistic"),
+            (chain, "_classify", "_classify"),
             (chain, "_isolate", "_isolate"),
             (chain, "_estimate", "_estimate"),
             (chain, "_prognose", "_prognose"),
@@ -305,7 +307,7 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
             (phm_module, "predict_end_of_life", "predict_end_of_life"),
             (chain.classifier, "predict_proba", "classifier.predict_proba"),
             (chain.estimator, "estimate", "estimator.estimate"),
-            (chain.estimator, "_candidate_ea", "estimator._candidate_ea"),
+            (chain.estimator, "_candidate_signature", "estimator._candidate_signature"),
             (prognosis_module, "simulate_batch", "simulate_batch (candidates)"),
         ]
     saved: list[tuple[Any, str, bool, Any]] = []
@@ -337,10 +339,11 @@ def stage_rows(p: Profiler, steps: int, step_total: float) -> list[tuple[str, fl
         ("load signal (MaintenanceCore._load)", p.inclusive(*O, "_load")),
         ("plant + reference simulation (simulate_batch)", p.inclusive(*O, "simulate_batch")),
         ("measurement matrices + einsums (_operate rest)", p.self_time(*O) + p.inclusive(*O, "measurement_matrix")),
-        ("measurement noise (add_sensor_noise)", p.inclusive(*O, "add_sensor_noise")),
+        ("measurement noise (MaintenanceCore._sensor_noise)", p.inclusive(*O, "_sensor_noise")),
         ("EA monitor (Monitor.update)", p.inclusive(*H, "monitor.update")),
         ("detection (PHMChain._statistic)", p.inclusive(*H, "_statistic")),
-        ("isolation (_isolate: frame, features, torch)", p.inclusive(*H, "_isolate")),
+        ("isolation network (_classify: frame, features, torch)", p.inclusive(*H, "_classify")),
+        ("isolation belief (_isolate: network x EA fits)", p.inclusive(*H, "_isolate")),
         ("prognosis: EA inversion (_estimate)", p.inclusive(*H, "_estimate")),
         ("prognosis: EoL extrapolation (_prognose)", p.inclusive(*H, "_prognose")),
         ("chain bookkeeping (PHMChain.update rest)", p.self_time(*H)),
