@@ -242,8 +242,9 @@ class PHMChain:
             "steps": np.zeros(n, dtype=int),
             "ea": np.zeros((n, E, subs)),
             "ea_reference": np.zeros((n, E, subs)),
-            "gram": np.zeros((n, C, C, balances)),
-            "cross": np.zeros((n, C, balances)),
+            # the isolation frame needs only their sums: one entry per step
+            "gram": np.zeros((n, C, C, self.frame_steps)),
+            "cross": np.zeros((n, C, self.frame_steps)),
             "balance": np.zeros((n, balances)),
             "noise": np.zeros((n, 2, nx, self.frame_steps)),
             "signals": np.zeros((n, nx, signal_samples)),
@@ -283,8 +284,8 @@ class PHMChain:
         s["steps"] = s["steps"] + 1
         for key, value in (("ea", window.ea), ("ea_reference", window.ea_reference)):
             s[key] = _push(s[key], value)
-        s["gram"] = _push(s["gram"], np.moveaxis(window.gram, 1, -1))
-        s["cross"] = _push(s["cross"], np.moveaxis(window.cross, 1, -1))
+        s["gram"] = _push(s["gram"], window.gram.sum(axis=1)[..., None])
+        s["cross"] = _push(s["cross"], window.cross.sum(axis=1)[..., None])
         s["balance"] = _push(s["balance"], window.balance)
         s["noise"] = _push(s["noise"], window.noise[..., None])
         s["signals"] = _push(s["signals"], measured[..., 1:])

@@ -52,7 +52,7 @@ class EstimatorConfig:
 
     window: float = 3.0
     grid: int = 9
-    passes: int = 4
+    passes: int = 3
     margin: float = 0.5
     warm_span: float = 0.05
     warm_grid: int = 5
