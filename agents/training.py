@@ -11,18 +11,23 @@ from __future__ import annotations
 
 import importlib.util
 import json
+import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 from stable_baselines3 import A2C, DQN, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 import ea_gym  # noqa: F401 - registers the environments
+from agents.imitation import clone
+from agents.observations import LogRul, normalised_keys
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
@@ -51,6 +56,28 @@ class TrainingRun:
     checkpoint_every: int = 50_000
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     hyperparameters: dict[str, Any] = field(default_factory=dict)
+    teacher: str | None = None  # a rule of TEACHERS cloned before learning (PPO and A2C only)
+    teacher_parameter: float | None = None  # its threshold or period (s); None: TEACHERS' default
+    teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning
+
+
+#: rule policies a learner can start from (``agents.imitation``), with their default parameter (s):
+#: the tuned values of the benchmark (experiments/results/benchmark)
+TEACHERS: dict[str, tuple[str, float]] = {
+    "rul_threshold": ("RulThreshold", 10.0),
+    "oracle": ("Oracle", 2.0),
+    "periodic": ("Periodic", 120.0),
+}
+
+
+def make_teacher(run: TrainingRun, env: VecEnv) -> Any:
+    """The rule policy ``run.teacher`` for ``env`` (it refuses an obs_mode it cannot read)."""
+    from agents import policies
+
+    if run.teacher not in TEACHERS:
+        raise ValueError(f"teacher must be one of {sorted(TEACHERS)}, got {run.teacher!r}")
+    name, default = TEACHERS[run.teacher]
+    return getattr(policies, name)(env, default if run.teacher_parameter is None else run.teacher_parameter)
 
 
 def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = None) -> VecEnv:
@@ -64,12 +91,26 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
     else:
         raise ValueError(f"vec_env must be 'batched' or 'subproc', got {kind!r}")
     env.seed(seed)
-    return VecMonitor(env)  # episode returns and lengths for the logs and the evaluation callback
+    # VecMonitor: episode returns and lengths for the logs and the evaluation callback
+    return LogRul(VecMonitor(env))
 
 
-def default_hyperparameters(algo: str, n_envs: int) -> dict[str, Any]:
-    """Settings that train in minutes on two cores (episodes are 500 steps)."""
+def normalize(env: VecEnv, training: bool = True) -> VecNormalize:
+    """Standardise the unbounded observation keys (see ``agents.observations``) and the rewards."""
+    return VecNormalize(env, training=training, norm_obs=True, norm_reward=training, gamma=0.99,
+                        norm_obs_keys=normalised_keys(env.observation_space))
+
+
+def default_hyperparameters(algo: str, n_envs: int, cloned: bool = False) -> dict[str, Any]:
+    """Settings that train in minutes on two cores (episodes are 500 steps).
+
+    A policy cloned from a teacher is fine-tuned gently (smaller steps and clipping, no entropy bonus)
+    so that the first updates, on a value function fitted to the teacher, do not undo the cloning.
+    """
     if algo == "ppo":
+        if cloned:
+            return {"n_steps": max(4096 // n_envs, 32), "batch_size": 512, "n_epochs": 5, "gamma": 0.99,
+                    "gae_lambda": 0.95, "learning_rate": 5e-5, "ent_coef": 0.0, "clip_range": 0.1}
         return {"n_steps": max(2048 // n_envs, 32), "batch_size": 256, "n_epochs": 5, "gamma": 0.99,
                 "gae_lambda": 0.95, "learning_rate": 3e-4, "ent_coef": 0.01}
     if algo == "a2c":
@@ -97,12 +138,23 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
         env = VecNormalize.load(str(_normalization_beside(resume)), env)
         model = algorithm.load(str(resume), env=env, seed=run.seed)
     else:
-        env = VecNormalize(env, norm_obs=True, norm_reward=True, gamma=0.99)
-        hyperparameters = {**default_hyperparameters(run.algo, run.n_envs), **run.hyperparameters}
+        env = normalize(env)
+        hyperparameters = {**default_hyperparameters(run.algo, run.n_envs, cloned=run.teacher is not None), **run.hyperparameters}
         tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
         model = algorithm("MultiInputPolicy", env, seed=run.seed, verbose=0, tensorboard_log=tensorboard, **hyperparameters)
-    evaluation_env = VecNormalize(evaluation_env, norm_obs=True, norm_reward=False, training=False)
+    evaluation_env = normalize(evaluation_env, training=False)
     evaluation_env.obs_rms = env.obs_rms
+    started = time.perf_counter()
+    cloning = None
+    if run.teacher is not None and resume is None:
+        if run.algo == "dqn":
+            raise ValueError("a teacher can only be cloned into PPO or A2C (an actor-critic), not DQN")
+        with single_threaded_torch():
+            cloning = asdict(clone(model, env, make_teacher(run, env), run.teacher_steps, restore=env.venv.inverse))
+            # the cloned policy is a candidate too: reinforcement learning must beat it to replace it
+            rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
+        cloning["validation_reward"] = float(np.mean(rewards))
+        _checkpoint(model, env, out, run.algo, 0)
     steps_per_call = max(run.n_envs, 1)
     callbacks = CallbackList([
         EvalCallback(evaluation_env, n_eval_episodes=run.eval_episodes, eval_freq=max(run.eval_every // steps_per_call, 1),
@@ -110,18 +162,51 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
         CheckpointCallback(save_freq=max(run.checkpoint_every // steps_per_call, 1), save_path=str(out / "checkpoints"),
                            name_prefix=run.algo, save_vecnormalize=True),
     ])
-    started = time.perf_counter()
     # the environments' numpy shares the process: a second torch thread fights its BLAS threads (20x slower here)
     with single_threaded_torch():
         model.learn(total_timesteps=run.timesteps, callback=callbacks, progress_bar=progress_bar, reset_num_timesteps=resume is None)
     wall = time.perf_counter() - started
-    model.save(str(out / MODEL_FILE))
-    env.save(str(out / NORMALIZATION_FILE))
+    _checkpoint(model, env, out, run.algo, model.num_timesteps)
+    selected = _select(out, run, cloning, model.num_timesteps)
     summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
-               "resumed_from": None if resume is None else str(resume)}
+               "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected}
     write_json(out / "training.json", summary)
     env.close()
     return summary
+
+
+def _checkpoint(model: BaseAlgorithm, env: VecNormalize, out: Path, algo: str, steps: int) -> None:
+    """Save the model and its normalisation under CheckpointCallback's names."""
+    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
+    model.save(str(out / "checkpoints" / f"{algo}_{steps}_steps.zip"))
+    env.save(str(out / "checkpoints" / f"{algo}_vecnormalize_{steps}_steps.pkl"))
+
+
+def _select(out: Path, run: TrainingRun, cloning: dict[str, Any] | None, final_steps: int) -> dict[str, Any]:
+    """Copy the checkpoint with the best validation reward to ``out/model.zip`` and its normalisation to
+    ``out/vecnormalize.pkl``; the final model when no checkpoint was evaluated.
+
+    Candidates are the checkpoints taken at an evaluation (``checkpoint_every`` a multiple of
+    ``eval_every``) and the cloned policy before learning.
+    """
+    checkpoints = out / "checkpoints"
+    candidates: list[tuple[float, str]] = []
+    if cloning is not None:
+        candidates.append((cloning["validation_reward"], "0"))
+    log = out / "evaluations" / "evaluations.npz"
+    if log.is_file():
+        with np.load(log) as evaluations:
+            for steps, rewards in zip(evaluations["timesteps"], evaluations["results"]):
+                if (checkpoints / f"{run.algo}_{steps}_steps.zip").is_file():
+                    candidates.append((float(np.mean(rewards)), str(steps)))
+    if candidates:
+        best_reward, best = max(candidates, key=lambda c: c[0])
+        why = f"best mean validation reward ({best_reward:.1f} over {run.eval_episodes} validation episodes)"
+    else:
+        best, why = str(final_steps), "no evaluated checkpoint: the final model"
+    shutil.copyfile(checkpoints / f"{run.algo}_{best}_steps.zip", out / MODEL_FILE)
+    shutil.copyfile(checkpoints / f"{run.algo}_vecnormalize_{best}_steps.pkl", out / NORMALIZATION_FILE)
+    return {"checkpoint": f"{best} steps", "why": why}
 
 
 def _normalization_beside(checkpoint: Path) -> Path:
@@ -156,5 +241,6 @@ class NormalizedPolicy:
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         batched = observation["time_since_maintenance"].ndim == 2
         batch = observation if batched else {key: value[None] for key, value in observation.items()}
-        actions, state = self.model.predict(self.normalization.normalize_obs(batch), state, episode_start, deterministic)
+        learner_view = self.normalization.normalize_obs(self.normalization.venv.forward(batch))
+        actions, state = self.model.predict(learner_view, state, episode_start, deterministic)
         return (actions if batched else actions[0]), state

@@ -76,6 +76,7 @@ def _train(args: argparse.Namespace) -> int:
     run = TrainingRun(
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed,
         vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
+        teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
     )
     summary = train(run, Path(args.out), resume=None if args.resume is None else Path(args.resume), progress_bar=not args.no_progress)
     print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
@@ -197,6 +198,11 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--eval-every", type=_positive_int, default=20_000, help="steps between evaluations (default 20000)")
     train.add_argument("--checkpoint-every", type=_positive_int, default=50_000, help="steps between checkpoints (default 50000)")
     train.add_argument("--resume", metavar="CHECKPOINT", default=None, help="continue from a checkpoint .zip (or a model.zip)")
+    train.add_argument("--teacher", choices=["rul_threshold", "oracle", "periodic"], default=None,
+                       help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
+    train.add_argument("--teacher-parameter", type=float, default=None,
+                       help="the teacher's RUL threshold or period in s (default: the benchmark's tuned value)")
+    train.add_argument("--teacher-steps", type=_positive_int, default=100_000, help="environment steps the teacher runs (default 100000)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     train.set_defaults(run=_train)
 

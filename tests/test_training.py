@@ -57,3 +57,27 @@ def test_train_command_rejects_bad_arguments(capsys):
     with pytest.raises(SystemExit):
         main(["train", "--timesteps", "0", "--out", "x"])
     assert "expected a positive integer" in capsys.readouterr().err
+
+
+def test_the_selected_model_is_the_best_validated_checkpoint(trained):
+    out, summary = trained
+    with np.load(out / "evaluations" / "evaluations.npz") as log:
+        rewards = dict(zip(log["timesteps"].tolist(), log["results"].mean(axis=1)))
+    best = max((steps for steps in rewards if (out / "checkpoints" / f"ppo_{steps}_steps.zip").is_file()), key=rewards.get)
+    assert summary["selected"]["checkpoint"] == f"{best} steps"
+    assert (out / "model.zip").read_bytes() == (out / "checkpoints" / f"ppo_{best}_steps.zip").read_bytes()
+
+
+def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
+    run = TrainingRun(algo="ppo", timesteps=128, obs_mode="oracle", n_envs=4, eval_every=128, eval_episodes=1,
+                      checkpoint_every=128, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64},
+                      teacher="oracle", teacher_steps=2048)
+    summary = train(run, tmp_path, progress_bar=False)
+    cloning = summary["cloning"]
+    assert sum(cloning["action_counts"]) == cloning["steps"] == 2048
+    # an untrained policy agrees with the teacher about 1 step in 7; the clone nearly always
+    assert cloning["accuracy"] >= 0.9
+    assert (tmp_path / "checkpoints" / "ppo_0_steps.zip").is_file()  # the clone, before learning
+    assert summary["selected"]["checkpoint"] in ("0 steps", "128 steps")
+    with pytest.raises(ValueError, match="teacher must be one of"):
+        train(TrainingRun(timesteps=64, teacher="guess", n_envs=2, hyperparameters={"n_steps": 32, "batch_size": 64}), tmp_path / "x", progress_bar=False)

@@ -1,0 +1,66 @@
+"""How the environment's observations are presented to a learner.
+
+``VecNormalize`` standardises every observation key by its running mean and std and clips the result
+to +-10. That suits the unbounded signals (EA, residuals, time since maintenance) but destroys the
+bounded ones whose informative values are rare: the RUL sits at ``rul_max`` (1000 s) nearly always,
+so a RUL of 5 s and one of 150 s both standardise below -10 and clip to the same value, and a
+diagnosis belief of 0.2 or 0.8 on a fault class (0 nearly always) both clip to +10. The decision the
+learner must make, replacing the suspect shortly before its End of Life, then cannot be seen.
+
+So the bounded keys pass unnormalised, and the RUL (s) goes on a log scale in [0, 1],
+log(1 + rul) / log(1 + rul_max), which resolves the last seconds as well as the last minutes.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+
+#: keys standardised by VecNormalize; the others are bounded and passed as they are
+NORMALISED_KEYS = ("ea", "residual", "time_since_maintenance")
+
+
+def normalised_keys(observation_space: spaces.Dict) -> list[str]:
+    """The keys of ``observation_space`` that VecNormalize should standardise."""
+    return [key for key in NORMALISED_KEYS if key in observation_space.spaces]
+
+
+class LogRul(VecEnvWrapper):
+    """Replaces ``observation["rul"]`` (s, in [0, rul_max]) by log(1 + rul) / log(1 + rul_max).
+
+    Observations without a ``rul`` key (obs_mode "sensors") pass unchanged.
+    """
+
+    def __init__(self, venv: VecEnv):
+        space: spaces.Dict = venv.observation_space
+        self.scale = math.log1p(float(np.max(space["rul"].high))) if "rul" in space.spaces else None
+        if self.scale is not None:
+            space = spaces.Dict({**space.spaces, "rul": spaces.Box(0.0, 1.0, space["rul"].shape, np.float32)})
+        super().__init__(venv, observation_space=space)
+
+    def forward(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The learner's view of an environment observation (single or batched)."""
+        if self.scale is None:
+            return observation
+        rul = np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale
+        return {**observation, "rul": rul.astype(np.float32)}
+
+    def inverse(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """The environment observation back from the learner's view (RUL in s again)."""
+        if self.scale is None:
+            return observation
+        return {**observation, "rul": np.expm1(observation["rul"].astype(float) * self.scale).astype(np.float32)}
+
+    def reset(self) -> Any:
+        return self.forward(self.venv.reset())
+
+    def step_wait(self) -> Any:
+        observation, rewards, dones, infos = self.venv.step_wait()
+        for info in infos:  # SB3 keeps the last observation of a finished episode here
+            if "terminal_observation" in info:
+                info["terminal_observation"] = self.forward(info["terminal_observation"])
+        return self.forward(observation), rewards, dones, infos

@@ -1,0 +1,32 @@
+"""The learner's view of the observations (agents.observations)."""
+
+import math
+
+import numpy as np
+
+from agents.imitation import discounted_returns
+from agents.observations import LogRul, normalised_keys
+from agents.training import TrainingRun, make_vec_env
+
+
+def test_log_rul_separates_the_last_minutes_and_inverts_exactly():
+    env = make_vec_env(TrainingRun(obs_mode="phm"), 2, 0)
+    assert isinstance(env, LogRul)
+    observation = env.reset()
+    assert env.observation_space["rul"].contains(observation["rul"][0])
+    rul = np.array([[0.0, 5.0, 150.0], [10.0, 999.0, 1000.0]], np.float32)
+    view = env.forward({"rul": rul})["rul"]
+    np.testing.assert_allclose(view, np.log1p(rul) / math.log1p(1000.0), rtol=1e-6)
+    assert view[0, 2] - view[0, 1] > 0.4  # 5 s and 150 s stand far apart (VecNormalize clipped both to -10)
+    np.testing.assert_allclose(env.inverse({"rul": view})["rul"], rul, rtol=1e-5, atol=1e-4)
+    # only the unbounded keys are standardised; sensors mode has no RUL and passes unchanged
+    assert normalised_keys(env.observation_space) == ["ea", "residual", "time_since_maintenance"]
+    sensors = make_vec_env(TrainingRun(obs_mode="sensors"), 1, 0)
+    assert "rul" not in sensors.observation_space.spaces and sensors.forward({"ea": rul})["ea"] is rul
+
+
+def test_discounted_returns_stop_at_episode_ends():
+    rewards = np.array([[1.0], [2.0], [4.0], [8.0]])
+    dones = np.array([[False], [True], [False], [False]])
+    # step 1 ends its episode: 2; step 0: 1 + 0.5 * 2; the last two bootstrap on nothing after them
+    np.testing.assert_allclose(discounted_returns(rewards, dones, 0.5)[:, 0], [2.0, 2.0, 8.0, 8.0])
