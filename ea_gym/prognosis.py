@@ -21,14 +21,54 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy.stats import norm
 
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import simulate_batch
 from ea_gym.diagnosis.monitor import Monitor
-from ea_gym.energy import _interval_activity
 from ea_gym.models import SystemModel
+
+
+@numba.njit(cache=True)
+def _net_power(power: np.ndarray, components: np.ndarray, sources: np.ndarray) -> float:
+    """What the sources deliver minus what the components absorb, from the elements' powers (E,) in W."""
+    delivered = 0.0
+    for k in sources:
+        delivered += power[k]
+    absorbed = 0.0
+    for k in components:
+        absorbed += power[k]
+    return delivered - absorbed
+
+
+@numba.njit(cache=True)
+def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, h: float) -> tuple[bool, np.ndarray]:
+    """``EAParameterEstimator.signature`` of every row of power (M, E, T) in W, sampled every h seconds:
+    whether the components' powers are all finite, and (M, C + 1) in J."""
+    M, _, T = power.shape
+    C = len(components)
+    finite = True
+    out = np.empty((M, C + 1))
+    for m in range(M):
+        for c in range(C):
+            p = power[m, components[c]]
+            finite &= np.isfinite(p[0])
+            activity = 0.0
+            for t in range(T - 1):
+                finite &= np.isfinite(p[t + 1])
+                activity += 0.5 * (abs(p[t]) + abs(p[t + 1])) * h
+            out[m, c] = activity
+        # trapezoids of the net power, the sources' minus the components'
+        total = 0.0
+        previous = _net_power(power[m, :, 0], components, sources)
+        for t in range(1, T):
+            current = _net_power(power[m, :, t], components, sources)
+            total += previous + current
+            previous = current
+        out[m, C] = 0.5 * total * h
+    return finite, out
 
 
 @dataclass(frozen=True)
@@ -89,10 +129,11 @@ class EAParameterEstimator:
         whose coefficient grew by 10 % leaves 10 % of its dissipation unaccounted for), which is what
         makes a light damper identifiable.
         """
-        ea = _interval_activity(power[..., self._components, :], self.monitor.h).sum(-1)
-        net = power[..., self._sources, :].sum(-2) - power[..., self._components, :].sum(-2)
-        balance = 0.5 * (net[..., :-1] + net[..., 1:]).sum(-1) * self.monitor.h
-        return np.concatenate([ea, balance[..., None]], axis=-1)
+        rows = np.ascontiguousarray(power, dtype=float).reshape((-1,) + power.shape[-2:])
+        finite, signature = _signatures(rows, self._components, self._sources, self.monitor.h)
+        if not finite:
+            raise ValueError("power contains NaN or inf; Energy Activity needs finite signals")
+        return signature.reshape(power.shape[:-2] + signature.shape[-1:])
 
     def mismatch_scale(self, signature: np.ndarray) -> np.ndarray:
         """Per-entry scale of the mismatch: each component's EA, and for the balance see ``balance_share``."""
@@ -117,8 +158,11 @@ class EAParameterEstimator:
         x0 = np.repeat(start, g, 0) / to_signal
         uu = np.repeat(u, g, 0)[..., None]
         states = simulate_batch(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0)
-        signals = np.concatenate([states * to_signal[:, None], uu], axis=-1).transpose(0, 2, 1)
-        power, _ = self.monitor.powers(signals, self.context)
+        # the measured signals, then the load: (n g, nx + 1, T)
+        signals = self.monitor._buffer("candidates", (n * g, states.shape[2] + 1, states.shape[1]))
+        np.multiply(states.transpose(0, 2, 1), to_signal[:, :, None], out=signals[:, :-1])
+        signals[:, -1] = uu[..., 0]
+        power, _ = self.monitor.powers(signals, self.context, scratch=True)
         return self.signature(power).reshape(n, g, -1)
 
     def estimate(

@@ -20,13 +20,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ea_gym.bondgraph.elements import Kind
-from ea_gym.bondgraph.equations import bond_powers
 from ea_gym.diagnosis.features import Frame
-from ea_gym.diagnosis.smoothing import SavitzkyGolay
-from ea_gym.energy import _interval_activity, _sum_windows, window_samples
+from ea_gym.diagnosis.smoothing import SavitzkyGolay, filter_into
+from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
 
 
@@ -85,6 +85,179 @@ def add_sensor_noise(signals: np.ndarray, fraction: float | np.ndarray, rng: np.
     return signals + fraction * rms * rng.standard_normal(signals.shape)
 
 
+@numba.njit(cache=True)
+def _copy(source: np.ndarray, start: int, target: np.ndarray, offset: int) -> None:
+    """target[offset:] = source[start:] for as many samples as fit."""
+    for t in range(min(len(source) - start, len(target) - offset)):
+        target[offset + t] = source[start + t]
+
+
+@numba.njit(cache=True)
+def _same(a: np.ndarray, b: np.ndarray, start: int) -> bool:
+    """Whether a[start:] equals b[start:]."""
+    for t in range(start, len(a)):
+        if a[t] != b[t]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _smooth_rows(rows, skip, cut, smoother, differentiator, inertia, smooth, slope):
+    """The filters on rows (M, nx + 1, T): every signal filtered from sample ``skip`` on, outputs from ``cut`` on.
+
+    Args:
+        smoother, differentiator: ``filter_into`` coefficients of the smoothing and derivative filters.
+        inertia: (channel, element index, inertance) of each I element; only their laws differentiate.
+        smooth, slope: written: the smoothed signals (M, nx + 1, T - skip - cut) and the I elements'
+            flow derivatives (M, n_I, T - skip - cut).
+    """
+    M, channels, T = rows.shape
+    load = channels - 1
+    # the filter's loops vectorize only on contiguous signals; explicit copies (a slice assignment
+    # would allocate a temporary)
+    signal = np.empty(T - skip)
+    filtered = np.empty(T - skip)
+    for m in range(M):
+        for k in range(len(inertia)):
+            _copy(rows[m, int(inertia[k, 0])], skip, signal, 0)
+            filter_into(signal, filtered, differentiator[0], differentiator[1], differentiator[2])
+            _copy(filtered, cut, slope[m, k], 0)
+        for c in range(channels):
+            # the candidates of one system share the source's signal: filtered once
+            if c == load and m > 0 and _same(rows[m, c], rows[m - 1, c], skip):
+                _copy(smooth[m - 1, c], 0, smooth[m, c], 0)
+                continue
+            _copy(rows[m, c], skip, signal, 0)
+            filter_into(signal, filtered, smoother[0], smoother[1], smoother[2])
+            _copy(filtered, cut, smooth[m, c], 0)
+
+
+@numba.njit(cache=True)
+def _element_powers(smooth, slope, scale, Cy, Dy, effort, flow, sign, inertia, power):
+    """Nominal-law power (M, E, L) of every monitored element, written to ``power``, in W.
+
+    An I element's is I0 f df/dt from its own flow and derivative ``slope`` (M, n_I, L); the others'
+    are their bond values' product, with the arithmetic of ``bond_powers`` (z = Cy x + Dy u, x =
+    ``scale`` x the smoothed signals (M, nx + 1, L), u their last channel).
+    """
+    M, channels, L = smooth.shape
+    nx = channels - 1
+    own = np.zeros(len(effort), dtype=np.bool_)
+    for k in range(len(inertia)):
+        own[int(inertia[k, 1])] = True
+    x = np.empty(nx)
+    for m in range(M):
+        for e in range(len(effort)):
+            if own[e]:
+                continue
+            a, b, sg = effort[e], flow[e], sign[e]
+            for t in range(L):
+                for s in range(nx):
+                    x[s] = smooth[m, s, t] * scale[s]
+                ze = 0.0
+                zf = 0.0
+                for s in range(nx):
+                    ze += Cy[a, s] * x[s]
+                    zf += Cy[b, s] * x[s]
+                u = smooth[m, nx, t]
+                power[m, e, t] = (ze + Dy[a] * u) * (sg * (zf + Dy[b] * u))
+        for k in range(len(inertia)):
+            channel, element, inertance = int(inertia[k, 0]), int(inertia[k, 1]), inertia[k, 2]
+            for t in range(L):
+                power[m, element, t] = inertance * smooth[m, channel, t] * slope[m, k, t]
+
+
+@numba.njit(cache=True)
+def _chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sources, inertia):
+    """``Monitor.update``'s per-chunk outputs from the powers and smoothed signals of N real then N reference rows.
+
+    Args:
+        power: element powers (2N, E, L + 1) in W; smooth: smoothed signals (2N, nx + 1, L + 1).
+        raw: the measured signals after the chunk's first sample, (N, nx, L).
+        h: sample period (s); n_sub: samples per sub-window; n_balance: sub-windows per balance window.
+        components, sources: element indices; inertia: (channel, element index, inertance) of each I element.
+
+    Returns:
+        finite (whether every power is finite), EA (2N, E, n_sub) in J, balance residual (N, n_balances)
+        in J, gram (N, n_balances, C, C) and cross (N, n_balances, C) in J^2, noise sums (N, 2, nx).
+    """
+    M, E, T = power.shape
+    n = M // 2
+    subs = (T - 1) // n_sub
+    balances = subs // n_balance
+    C, nx = len(components), raw.shape[1]
+    finite = True
+    ea = np.empty((M, E, subs))
+    energy = np.empty((M, E, subs))  # signed, eq 3
+    balance = np.empty((M, subs))
+    for m in range(M):
+        for e in range(E):
+            p = power[m, e]
+            for t in range(T):
+                finite &= np.isfinite(p[t])
+            for s in range(subs):
+                absolute = 0.0
+                signed = 0.0
+                for t in range(s * n_sub, (s + 1) * n_sub):
+                    absolute += 0.5 * (abs(p[t]) + abs(p[t + 1])) * h
+                    signed += 0.5 * (p[t] + p[t + 1]) * h
+                ea[m, e, s] = absolute
+                energy[m, e, s] = signed
+        # an I element's energy is the change of its kinetic energy: exact, free of the derivative's noise
+        for k in range(len(inertia)):
+            channel, element, half_inertance = int(inertia[k][0]), int(inertia[k][1]), 0.5 * inertia[k][2]
+            f = smooth[m, channel]
+            for s in range(subs):
+                energy[m, element, s] = half_inertance * (f[(s + 1) * n_sub] ** 2 - f[s * n_sub] ** 2)
+        for s in range(subs):
+            delivered = 0.0
+            for k in sources:
+                delivered += energy[m, k, s]
+            absorbed = 0.0
+            for k in components:
+                absorbed += energy[m, k, s]
+            balance[m, s] = delivered - absorbed
+    residual = np.zeros((n, balances))
+    gram = np.empty((n, balances, C, C))
+    cross = np.empty((n, balances, C))
+    stored = np.empty(C)
+    noise = np.zeros((n, 2, nx))
+    for m in range(n):
+        for b in range(balances):
+            for s in range(b * n_balance, (b + 1) * n_balance):
+                residual[m, b] += balance[m, s] - balance[n + m, s]  # the reference's own error cancels
+            for i in range(C):
+                stored[i] = 0.0
+                for s in range(b * n_balance, (b + 1) * n_balance):
+                    stored[i] += energy[m, components[i], s]
+            for i in range(C):
+                for j in range(C):
+                    gram[m, b, i, j] = stored[i] * stored[j]
+                cross[m, b, i] = stored[i] * residual[m, b]
+        for c in range(nx):
+            for t in range(raw.shape[2]):
+                noise[m, 0, c] += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
+                noise[m, 1, c] += raw[m, c, t] ** 2
+    return finite, ea, residual, gram, cross, noise
+
+
+@numba.njit(cache=True)
+def _padded_chunk(measured, reference, load, context, padded):
+    """Real then reference rows (2N, nx + 1, S + L + 1) with the load as last channel, written to
+    ``padded``, each led by its S samples of smoothing context: ``context`` (2N, nx + 1, S), or where it
+    is NaN the chunk mirrored about its first sample. ``context`` becomes the next chunk's."""
+    n, nx, T = measured.shape
+    S = context.shape[2]
+    for r in range(2 * n):
+        for c in range(nx + 1):
+            x = load[r % n] if c == nx else (measured[r, c] if r < n else reference[r - n, c])
+            y, previous = padded[r, c], context[r, c]
+            for k in range(S):
+                y[k] = x[S - k] if np.isnan(previous[k]) else previous[k]
+            _copy(x, 0, y, S)
+            _copy(x, T - S - 1, previous, 0)
+
+
 class Monitor:
     """Streams measured and reference signals through denoising, nominal-law power and EA.
 
@@ -117,6 +290,8 @@ class Monitor:
         nominal = model.parameter_vector()
         mats = space.matrices(nominal)
         self._Cy, self._Dy = mats.Cy, mats.Dy
+        self._Dy0 = np.ascontiguousarray(mats.Dy[:, 0])  # the one input's column
+        self._buffers: dict[tuple, np.ndarray] = {}
         # per state: the nominal factor turning the measured signal into the energy variable
         self._to_state = np.array(
             [nominal[space.parameter_names.index(s)] if elements[s].kind is Kind.I else 1.0 for s in space.state_names]
@@ -128,6 +303,13 @@ class Monitor:
             for j, name in enumerate(space.state_names)
             if elements[name].kind is Kind.I
         }
+        names, effort, flow, sign = space.element_bonds()
+        order = [names.index(name) for name in self.elements]
+        self._bonds = (effort[order], flow[order], sign[order])
+        # (channel, element index, inertance) of every I element, as the compiled kernels take them
+        self._inertia = np.array(
+            [(j, self.elements.index(name), inertance) for name, (j, inertance) in self._inertance.items()], dtype=float
+        ).reshape(-1, 3)
         self._context: np.ndarray | None = None  # last samples of the previous chunk, real then reference
 
     def measurement_matrix(self, parameters: np.ndarray) -> np.ndarray:
@@ -146,98 +328,77 @@ class Monitor:
         else:
             self._context[np.concatenate([systems, systems])] = np.nan
 
-    def _with_context(self, signals: np.ndarray) -> np.ndarray:
-        """Prepend the previous chunk's last samples; a fresh system gets its chunk mirrored about its first sample."""
-        mirrored = signals[..., 1 : self.config.smoothing + 1][..., ::-1]
-        if self._context is None:
-            context = mirrored
-        else:
-            context = np.where(np.isnan(self._context), mirrored, self._context)
-        return np.concatenate([context, signals], axis=-1)
+    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        """A scratch array of ``shape``, kept between calls (fresh large arrays cost page faults each
+        step); the next request for ``name`` and the same trailing shape overwrites it."""
+        key = (name,) + shape[1:]
+        buffer = self._buffers.get(key)
+        if buffer is None or len(buffer) < shape[0]:
+            buffer = self._buffers[key] = np.empty(shape)
+        return buffer[: shape[0]]
 
-    def powers(self, signals: np.ndarray, start: int) -> tuple[np.ndarray, np.ndarray]:
-        """Nominal-law power of every element (..., E, L + 1) and the denoised signals (..., nx + 1, L + 1).
+    def powers(self, signals: np.ndarray, start: int, scratch: bool = False) -> tuple[np.ndarray, np.ndarray]:
+        """Nominal-law power of every element (..., E, L + 1) in W and the denoised signals (..., nx + 1, L + 1).
 
         ``signals`` (..., nx + 1, T) hold the measured flows of I and displacements of C, then the
         source's value; the samples before ``start`` are smoothing context only. The load passes
         through the same linear filter as the measurements, so the filtered signals still obey the
         model's equations and the nominal energy balance holds exactly in a fault-free run.
+        ``scratch``: the results live in buffers that the next call overwrites.
         """
         # the outputs from ``start`` on need the samples from ``start - half`` on only: the filter's
         # interior and end rows give them exactly as on the whole signal
         half = self.filter.half
         skip = start - half if start >= half and signals.shape[-1] - start >= half + 1 else 0
-        lead, channels = signals.shape[:-2], signals.shape[-2]
-        rows = signals[..., skip:].reshape((-1, channels, signals.shape[-1] - skip))
-        cut = start - skip
-        flat = np.empty(rows.shape[:-1] + (rows.shape[-1] - cut,))
-        flat[:, :-1] = self.filter(rows[:, :-1])[..., cut:]
-        # the source's signal is often the same in consecutive rows (the candidates of one system): filtered once
-        load = rows[:, -1]
-        fresh = np.ones(len(load), dtype=bool)
-        fresh[1:] = np.any(load[1:] != load[:-1], axis=-1)
-        if np.count_nonzero(fresh) < 0.75 * len(load):
-            flat[:, -1] = self.filter(load[fresh])[np.cumsum(fresh) - 1, cut:]
-        else:
-            flat[:, -1] = self.filter(load)[:, cut:]
-        smooth = flat.reshape(lead + flat.shape[-2:])
-        inertia_channels = [j for j, _ in self._inertance.values()]
-        slope = self.filter(rows[:, inertia_channels], deriv=1)[..., cut:].reshape(lead + (len(inertia_channels), -1))  # only I laws differentiate
-        names, effort, flow, sign = self.model.state_space.element_bonds()
-        power = bond_powers(flat, self._to_state, self._Cy, np.ascontiguousarray(self._Dy[:, 0]), effort, flow, sign)
-        power = power.reshape(lead + power.shape[-2:])
-        order = [names.index(name) for name in self.elements]
-        if order != list(range(len(names))):
-            power = power[..., order, :]
-        for k, (name, (j, inertance)) in enumerate(self._inertance.items()):
-            power[..., self.elements.index(name), :] = inertance * smooth[..., j, :] * slope[..., k, :]
+        if signals.shape[-1] - skip < self.filter.window:
+            raise ValueError(f"signals of {signals.shape[-1] - skip} samples are shorter than the filter ({self.filter.window})")
+        lead = signals.shape[:-2]
+        rows = np.ascontiguousarray(signals, dtype=float).reshape((-1,) + signals.shape[-2:])
+        power, smooth = self._powers(rows, skip, start - skip)
+        if not scratch:
+            power, smooth = power.copy(), smooth.copy()
+        return power.reshape(lead + power.shape[-2:]), smooth.reshape(lead + smooth.shape[-2:])
+
+    def _powers(self, rows: np.ndarray, skip: int, cut: int) -> tuple[np.ndarray, np.ndarray]:
+        """``powers`` of rows (M, nx + 1, T) into scratch buffers, filtered from sample ``skip`` on, outputs from ``cut`` on."""
+        M, channels, T = rows.shape
+        L = T - skip - cut
+        smooth = self._buffer("smooth", (M, channels, L))
+        slope = self._buffer("slope", (M, len(self._inertia), L))
+        power = self._buffer("power", (M, len(self.elements), L))
+        _smooth_rows(rows, skip, cut, self.filter.coefficients(0), self.filter.coefficients(1), self._inertia, smooth, slope)
+        _element_powers(smooth, slope, self._to_state, self._Cy, self._Dy0, *self._bonds, self._inertia, power)
         return power, smooth
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray) -> MonitorWindow:
         """Process one chunk of L intervals (L + 1 samples, the first shared with the previous chunk).
+
+        The previous chunk's last samples lead each signal as smoothing context; a fresh system's
+        chunk is mirrored about its first sample instead.
 
         Args:
             measured: noisy measured signals, (N, nx, L + 1).
             reference: the reference model's signals, same shape and meaning.
             load: the source's value, (N, L + 1).
         """
-        if measured.shape[-1] <= self.config.smoothing:
-            raise ValueError(
-                f"a chunk of {measured.shape[-1]} samples must be longer than the smoothing window ({self.config.smoothing})"
-            )
-        both = np.concatenate([measured, reference], axis=0)
-        both = np.concatenate([both, np.concatenate([load, load], axis=0)[:, None]], axis=1)
-        padded = self._with_context(both)
-        start = padded.shape[-1] - both.shape[-1]
-        power, smooth = self.powers(padded, start)
-        self._context = both[..., -self.config.smoothing - 1 : -1]
-        n = len(measured)
-        areas = _interval_activity(power, self.h)
-        ea = _sum_windows(areas, self.n_sub)[0]
-        energy = self._signed_energy(power, smooth)
-        balance = energy[:, self._source_index].sum(axis=1) - energy[:, self._component_index].sum(axis=1)
-        residual = _sum_windows(balance[:n] - balance[n:], self.n_balance)[0]  # the reference's own error cancels
-        stored = _sum_windows(energy[:n, self._component_index], self.n_balance)[0]  # (n, C, n_balances)
-        gram = np.einsum("nis,njs->nsij", stored, stored)
-        cross = np.einsum("nis,ns->nsi", stored, residual)
-        raw = measured[..., 1:]
-        noise = np.stack([((raw - smooth[:n, :-1, 1:]) ** 2).sum(-1), (raw**2).sum(-1)], axis=1)
-        return MonitorWindow(
-            ea=ea[:n], ea_reference=ea[n:], gram=gram, cross=cross, balance=residual, signals=smooth[:n, :-1], noise=noise
+        S = self.config.smoothing
+        n, nx, T = measured.shape
+        if T <= S:
+            raise ValueError(f"a chunk of {T} samples must be longer than the smoothing window ({S})")
+        if self._context is None:
+            self._context = np.full((2 * n, nx + 1, S), np.nan)
+        measured, reference, load = (np.ascontiguousarray(x, dtype=float) for x in (measured, reference, load))
+        padded = self._buffer("padded", (2 * n, nx + 1, S + T))
+        _padded_chunk(measured, reference, load, self._context, padded)
+        power, smooth = self._powers(padded, S - self.filter.half, self.filter.half)
+        finite, ea, residual, gram, cross, noise = _chunk_statistics(
+            power, smooth, measured[..., 1:], self.h, self.n_sub, self.n_balance, self._component_index, self._source_index, self._inertia
         )
-
-    def _signed_energy(self, power: np.ndarray, smooth: np.ndarray) -> np.ndarray:
-        """Energy absorbed by every element in every sub-window (J, eq 3), (..., E, n_sub).
-
-        An I element's is the change of its kinetic energy, I0 (f_end^2 - f_start^2) / 2, exact and free
-        of the derivative's noise; the others integrate their power by the trapezoidal rule.
-        """
-        trapezoids = 0.5 * (power[..., :-1] + power[..., 1:]) * self.h
-        energy = _sum_windows(trapezoids, self.n_sub)[0]
-        for name, (j, inertance) in self._inertance.items():
-            edges = smooth[..., j, :: self.n_sub]
-            energy[..., self.elements.index(name), :] = 0.5 * inertance * np.diff(edges**2, axis=-1)
-        return energy
+        if not finite:
+            raise ValueError("power contains NaN or inf; Energy Activity needs finite signals")
+        return MonitorWindow(
+            ea=ea[:n], ea_reference=ea[n:], gram=gram, cross=cross, balance=residual, signals=smooth[:n, :-1].copy(), noise=noise
+        )
 
     def frame(self, windows: list[MonitorWindow]) -> Frame:
         """Join consecutive chunks' outputs into one isolation frame."""

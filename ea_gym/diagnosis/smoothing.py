@@ -17,32 +17,37 @@ from scipy.signal import savgol_coeffs, savgol_filter
 # reassociation lets each dot product run as SIMD partial sums (2x faster); the order of the sums
 # still depends only on the window, so every row gives the same result in any batch
 @numba.njit(cache=True, fastmath={"reassoc", "contract"})
-def _filter_rows(x: np.ndarray, interior: np.ndarray, head: np.ndarray, tail: np.ndarray) -> np.ndarray:
-    """The filter on every row of x (rows, L).
+def filter_into(xr: np.ndarray, yr: np.ndarray, interior: np.ndarray, head: np.ndarray, tail: np.ndarray) -> None:
+    """The filter on one signal xr (L,), written to yr (L,).
 
     Args:
         interior: correlation coefficients (window,) for the outputs at least ``half`` samples from an end.
         head, tail: (half, window) maps from the first (last) ``window`` samples to the first (last) ``half`` outputs.
     """
-    rows, length = x.shape
+    length = len(xr)
     half, window = head.shape
+    x_tail = xr[length - window :]
+    for i in range(half):
+        first = 0.0
+        last = 0.0
+        for j in range(window):
+            first += head[i, j] * xr[j]
+            last += tail[i, j] * x_tail[j]
+        yr[i] = first
+        yr[length - half + i] = last
+    for i in range(length - 2 * half):
+        acc = 0.0
+        for j in range(window):
+            acc += interior[j] * xr[i + j]
+        yr[half + i] = acc
+
+
+@numba.njit(cache=True)
+def _filter_rows(x: np.ndarray, interior: np.ndarray, head: np.ndarray, tail: np.ndarray) -> np.ndarray:
+    """The filter on every row of x (rows, L); coefficients as in ``filter_into``."""
     out = np.empty_like(x)
-    for r in range(rows):
-        xr, yr = x[r], out[r]
-        x_tail = xr[length - window :]
-        for i in range(half):
-            first = 0.0
-            last = 0.0
-            for j in range(window):
-                first += head[i, j] * xr[j]
-                last += tail[i, j] * x_tail[j]
-            yr[i] = first
-            yr[length - half + i] = last
-        for i in range(length - 2 * half):
-            acc = 0.0
-            for j in range(window):
-                acc += interior[j] * xr[i + j]
-            yr[half + i] = acc
+    for r in range(x.shape[0]):
+        filter_into(x[r], out[r], interior, head, tail)
     return out
 
 
@@ -68,6 +73,10 @@ class SavitzkyGolay:
             edges = savgol_filter(identity, window, polyorder, deriv=deriv, delta=sample_period, axis=0)
             head, tail = np.ascontiguousarray(edges[: self.half]), np.ascontiguousarray(edges[-self.half :])
             self._coefficients[deriv] = (interior, head, tail)
+
+    def coefficients(self, deriv: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(interior, head, tail) of ``filter_into`` for the smoother (0) or the derivative (1)."""
+        return self._coefficients[deriv]
 
     def __call__(self, x: np.ndarray, deriv: int = 0) -> np.ndarray:
         if x.shape[-1] < self.window:

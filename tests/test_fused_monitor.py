@@ -1,0 +1,110 @@
+"""The compiled monitor and signature kernels equal a straightforward numpy computation to round-off."""
+
+import numpy as np
+import pytest
+
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.models import rlc_circuit, spring_mass_damper
+from ea_gym.prognosis import EAParameterEstimator
+
+
+def _close(actual, expected):
+    scale = np.max(np.abs(expected)) if np.size(expected) else 1.0
+    np.testing.assert_allclose(actual, expected, rtol=1e-12, atol=1e-12 * scale)
+
+
+def _reference_powers(monitor, signals, start):
+    """Filter whole signals, nominal laws through the junction matrices, I elements by I0 f df/dt."""
+    smooth = monitor.filter(signals)[..., start:]
+    channels = [j for j, _ in monitor._inertance.values()]
+    slope = monitor.filter(signals[..., channels, :], deriv=1)[..., start:]
+    states = smooth[..., :-1, :] * monitor._to_state[:, None]
+    bonds = np.einsum("bs,...st->...bt", monitor._Cy, states) + monitor._Dy[:, 0][:, None] * smooth[..., None, -1, :]
+    effort, flow = monitor.model.state_space.element_signals(np.moveaxis(bonds, -2, -1))
+    power = {name: effort[name] * flow[name] for name in effort}
+    for k, (name, (j, inertance)) in enumerate(monitor._inertance.items()):
+        power[name] = inertance * smooth[..., j, :] * slope[..., k, :]
+    return np.stack([power[name] for name in monitor.elements], axis=-2), smooth
+
+
+def _sums(x, n):
+    return x[..., : x.shape[-1] // n * n].reshape(x.shape[:-1] + (-1, n)).sum(-1)
+
+
+def _reference_update(monitor, context, measured, reference, load):
+    """One chunk as the monitor processes it, and the next context."""
+    S, h, n = monitor.config.smoothing, monitor.h, len(measured)
+    both = np.concatenate([np.concatenate([measured, reference]), np.concatenate([load, load])[:, None]], axis=1)
+    mirrored = both[..., 1 : S + 1][..., ::-1]
+    lead = mirrored if context is None else np.where(np.isnan(context), mirrored, context)
+    power, smooth = _reference_powers(monitor, np.concatenate([lead, both], axis=-1), S)
+    ea = _sums(0.5 * (np.abs(power[..., :-1]) + np.abs(power[..., 1:])) * h, monitor.n_sub)
+    energy = _sums(0.5 * (power[..., :-1] + power[..., 1:]) * h, monitor.n_sub)
+    for name, (j, inertance) in monitor._inertance.items():
+        energy[:, monitor.elements.index(name)] = 0.5 * inertance * np.diff(smooth[:, j, :: monitor.n_sub] ** 2, axis=-1)
+    balance = energy[:, monitor._source_index].sum(1) - energy[:, monitor._component_index].sum(1)
+    residual = _sums(balance[:n] - balance[n:], monitor.n_balance)
+    stored = _sums(energy[:n, monitor._component_index], monitor.n_balance)
+    raw = measured[..., 1:]
+    noise = np.stack([((raw - smooth[:n, :-1, 1:]) ** 2).sum(-1), (raw**2).sum(-1)], axis=1)
+    expected = {
+        "ea": ea[:n], "ea_reference": ea[n:], "balance": residual, "signals": smooth[:n, :-1], "noise": noise,
+        "gram": np.einsum("nis,njs->nsij", stored, stored), "cross": np.einsum("nis,ns->nsi", stored, residual),
+    }
+    return expected, both[..., -S - 1 : -1]
+
+
+@pytest.mark.parametrize("make_model", [spring_mass_damper, rlc_circuit])
+def test_chunks_with_context_and_fresh_systems_match_numpy(make_model):
+    model = make_model()
+    rng = np.random.default_rng(3)
+    n, nx, L = 5, len(model.state_names), 100
+    monitor = Monitor(model, 0.01, n_systems=n)
+    context = None
+    for chunk in range(4):
+        if chunk == 2:  # systems 1 and 3 start over: their context is forgotten
+            fresh = np.isin(np.arange(n), [1, 3])
+            monitor.reset(fresh)
+            context[np.concatenate([fresh, fresh])] = np.nan
+        measured, reference = rng.standard_normal((2, n, nx, L + 1))
+        load = rng.standard_normal((n, L + 1))
+        window = monitor.update(measured, reference, load)
+        expected, context = _reference_update(monitor, context, measured, reference, load)
+        for key, value in expected.items():
+            _close(getattr(window, key), value)
+
+
+def test_powers_and_signature_match_numpy_for_shared_and_distinct_loads():
+    model = spring_mass_damper()
+    monitor = Monitor(model, 0.01)
+    estimator = EAParameterEstimator(monitor)
+    rng = np.random.default_rng(4)
+    signals = rng.standard_normal((4, 3, 3, 200))
+    signals[:2, :, -1] = signals[:2, :1, -1]  # candidates of one system share the load
+    for start in (0, 51):
+        power, smooth = monitor.powers(signals, start)
+        expected_power, expected_smooth = _reference_powers(monitor, signals, start)
+        _close(power, expected_power)
+        _close(smooth, expected_smooth)
+    h, components, sources = monitor.h, estimator._components, estimator._sources
+    ea = (0.5 * (np.abs(power[..., components, :-1]) + np.abs(power[..., components, 1:])) * h).sum(-1)
+    net = power[..., sources, :].sum(-2) - power[..., components, :].sum(-2)
+    balance = 0.5 * (net[..., :-1] + net[..., 1:]).sum(-1) * h
+    _close(estimator.signature(power), np.concatenate([ea, balance[..., None]], axis=-1))
+
+
+def test_scratch_results_are_overwritten_but_plain_results_are_not():
+    monitor = Monitor(spring_mass_damper(), 0.01)
+    a, b = np.random.default_rng(5).standard_normal((2, 2, 3, 120))
+    kept, _ = monitor.powers(a, 51)
+    first = kept.copy()
+    monitor.powers(b, 51, scratch=True)
+    np.testing.assert_array_equal(kept, first)
+
+
+def test_non_finite_power_is_rejected():
+    monitor = Monitor(spring_mass_damper(), 0.01)
+    measured = np.ones((1, 2, 101))
+    measured[0, 0, 50] = np.inf
+    with pytest.raises(ValueError, match="finite"):
+        monitor.update(measured, np.ones((1, 2, 101)), np.ones((1, 101)))
