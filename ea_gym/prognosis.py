@@ -32,18 +32,6 @@ from ea_gym.models import SystemModel
 
 
 @numba.njit(cache=True)
-def _net_power(power: np.ndarray, components: np.ndarray, sources: np.ndarray) -> float:
-    """What the sources deliver minus what the components absorb, from the elements' powers (E,) in W."""
-    delivered = 0.0
-    for k in sources:
-        delivered += power[k]
-    absorbed = 0.0
-    for k in components:
-        absorbed += power[k]
-    return delivered - absorbed
-
-
-@numba.njit(cache=True)
 def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, h: float) -> tuple[bool, np.ndarray]:
     """``EAParameterEstimator.signature`` of every row of power (M, E, T) in W, sampled every h seconds:
     whether the components' powers are all finite, and (M, C + 1) in J."""
@@ -51,6 +39,8 @@ def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, 
     C = len(components)
     finite = True
     out = np.empty((M, C + 1))
+    delivered = np.empty(T)
+    absorbed = np.empty(T)
     for m in range(M):
         for c in range(C):
             p = power[m, components[c]]
@@ -60,13 +50,18 @@ def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, 
                 finite &= np.isfinite(p[t + 1])
                 activity += 0.5 * (abs(p[t]) + abs(p[t + 1])) * h
             out[m, c] = activity
-        # trapezoids of the net power, the sources' minus the components'
+        # trapezoids of the net power, the sources' minus the components'; time innermost to vectorize
+        delivered[:] = 0.0
+        absorbed[:] = 0.0
+        for k in sources:
+            for t in range(T):
+                delivered[t] += power[m, k, t]
+        for k in components:
+            for t in range(T):
+                absorbed[t] += power[m, k, t]
         total = 0.0
-        previous = _net_power(power[m, :, 0], components, sources)
         for t in range(1, T):
-            current = _net_power(power[m, :, t], components, sources)
-            total += previous + current
-            previous = current
+            total += (delivered[t - 1] - absorbed[t - 1]) + (delivered[t] - absorbed[t])
         out[m, C] = 0.5 * total * h
     return finite, out
 

@@ -145,22 +145,25 @@ def _element_powers(smooth, slope, scale, Cy, Dy, effort, flow, sign, inertia, p
     own = np.zeros(len(effort), dtype=np.bool_)
     for k in range(len(inertia)):
         own[int(inertia[k, 1])] = True
-    x = np.empty(nx)
+    # time innermost, so that the loops vectorize
+    ze = np.empty(L)
+    zf = np.empty(L)
     for m in range(M):
+        u = smooth[m, nx]
         for e in range(len(effort)):
             if own[e]:
                 continue
             a, b, sg = effort[e], flow[e], sign[e]
+            ze[:] = 0.0
+            zf[:] = 0.0
+            for s in range(nx):
+                ca, cb, c = Cy[a, s], Cy[b, s], scale[s]
+                for t in range(L):
+                    x = smooth[m, s, t] * c
+                    ze[t] += ca * x
+                    zf[t] += cb * x
             for t in range(L):
-                for s in range(nx):
-                    x[s] = smooth[m, s, t] * scale[s]
-                ze = 0.0
-                zf = 0.0
-                for s in range(nx):
-                    ze += Cy[a, s] * x[s]
-                    zf += Cy[b, s] * x[s]
-                u = smooth[m, nx, t]
-                power[m, e, t] = (ze + Dy[a] * u) * (sg * (zf + Dy[b] * u))
+                power[m, e, t] = (ze[t] + Dy[a] * u[t]) * (sg * (zf[t] + Dy[b] * u[t]))
         for k in range(len(inertia)):
             channel, element, inertance = int(inertia[k, 0]), int(inertia[k, 1]), inertia[k, 2]
             for t in range(L):
