@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
@@ -178,10 +179,24 @@ def relative_residuals(
     return np.concatenate([relative, (balance / dissipated)[..., None]], axis=-1)
 
 
+@numba.njit(cache=True)
+def _shift_in(buffer: np.ndarray, new: np.ndarray) -> None:
+    """Shift every row of ``buffer`` (R, T) left by k and write ``new`` (R, k) at its end."""
+    T, k = buffer.shape[1], new.shape[1]
+    for r in range(buffer.shape[0]):
+        for t in range(T - k):
+            buffer[r, t] = buffer[r, t + k]
+        for t in range(k):
+            buffer[r, T - k + t] = new[r, t]
+
+
 def _push(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """Append ``new`` along the last axis and drop as many of the oldest entries."""
+    """Append ``new`` along the last axis and drop as many of the oldest entries; in place (a fresh
+    array of the chain's history every step would cost page faults), and returned."""
     k = new.shape[-1]
-    return np.concatenate([buffer[..., k:], new], axis=-1)
+    buffer = np.ascontiguousarray(buffer)  # a view of its rows is then written
+    _shift_in(buffer.reshape(-1, buffer.shape[-1]), np.ascontiguousarray(new, dtype=buffer.dtype).reshape(-1, k))
+    return buffer
 
 
 class PHMChain:
