@@ -25,7 +25,7 @@ import numpy as np
 
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import Frame
-from ea_gym.diagnosis.smoothing import SavitzkyGolay, filter_into
+from ea_gym.diagnosis.smoothing import LANES, SavitzkyGolay, filter_lanes
 from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
 
@@ -93,43 +93,39 @@ def _copy(source: np.ndarray, start: int, target: np.ndarray, offset: int) -> No
 
 
 @numba.njit(cache=True)
-def _same(a: np.ndarray, b: np.ndarray, start: int) -> bool:
-    """Whether a[start:] equals b[start:]."""
-    for t in range(start, len(a)):
-        if a[t] != b[t]:
-            return False
-    return True
-
-
-@numba.njit(cache=True)
-def _smooth_rows(rows, skip, cut, smoother, differentiator, inertia, smooth, slope):
+def _smooth_rows(rows, skip, cut, moments, smoother, differentiator, inertia, smooth, slope):
     """The filters on rows (M, nx + 1, T): every signal filtered from sample ``skip`` on, outputs from ``cut`` on.
 
     Args:
-        smoother, differentiator: ``filter_into`` coefficients of the smoothing and derivative filters.
+        moments, smoother, differentiator: ``filter_lanes`` coefficients of the smoothing and derivative filters.
         inertia: (channel, element index, inertance) of each I element; only their laws differentiate.
         smooth, slope: written: the smoothed signals (M, nx + 1, T - skip - cut) and the I elements'
             flow derivatives (M, n_I, T - skip - cut).
     """
     M, channels, T = rows.shape
-    load = channels - 1
-    # the filter's loops vectorize only on contiguous signals; explicit copies (a slice assignment
-    # would allocate a temporary)
-    signal = np.empty(T - skip)
-    filtered = np.empty(T - skip)
-    for m in range(M):
-        for k in range(len(inertia)):
-            _copy(rows[m, int(inertia[k, 0])], skip, signal, 0)
-            filter_into(signal, filtered, differentiator[0], differentiator[1], differentiator[2])
-            _copy(filtered, cut, slope[m, k], 0)
-        for c in range(channels):
-            # the candidates of one system share the source's signal: filtered once
-            if c == load and m > 0 and _same(rows[m, c], rows[m - 1, c], skip):
-                _copy(smooth[m - 1, c], 0, smooth[m, c], 0)
-                continue
-            _copy(rows[m, c], skip, signal, 0)
-            filter_into(signal, filtered, smoother[0], smoother[1], smoother[2])
-            _copy(filtered, cut, smooth[m, c], 0)
+    length = T - skip
+    # LANES rows of one channel side by side, time first: the filter's recursion runs across them in
+    # SIMD; the lanes past the last row filter stale signals, whose outputs are discarded
+    x = np.zeros((length, LANES))
+    filtered = np.empty((length, LANES))
+    derivative = np.empty((length, LANES))
+    for c in range(channels):
+        k = -1
+        for i in range(len(inertia)):
+            if int(inertia[i, 0]) == c:
+                k = i
+        for m0 in range(0, M, LANES):
+            lanes = min(LANES, M - m0)
+            for b in range(lanes):
+                for t in range(length):
+                    x[t, b] = rows[m0 + b, c, skip + t]
+            filter_lanes(x, cut, moments, smoother, differentiator, k >= 0, filtered, derivative)
+            for b in range(lanes):
+                for t in range(length - cut):
+                    smooth[m0 + b, c, t] = filtered[cut + t, b]
+                if k >= 0:
+                    for t in range(length - cut):
+                        slope[m0 + b, k, t] = derivative[cut + t, b]
 
 
 @numba.njit(cache=True)
@@ -369,7 +365,9 @@ class Monitor:
         smooth = self._buffer("smooth", (M, channels, L))
         slope = self._buffer("slope", (M, len(self._inertia), L))
         power = self._buffer("power", (M, len(self.elements), L))
-        _smooth_rows(rows, skip, cut, self.filter.coefficients(0), self.filter.coefficients(1), self._inertia, smooth, slope)
+        _smooth_rows(
+            rows, skip, cut, self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1), self._inertia, smooth, slope
+        )
         _element_powers(smooth, slope, self._to_state, self._Cy, self._Dy0, *self._bonds, self._inertia, power)
         return power, smooth
 
