@@ -52,7 +52,7 @@ class TrainingRun:
     seed: int = 0
     vec_env: str = "batched"  # or "subproc"
     eval_every: int = 20_000  # environment steps between evaluations
-    eval_episodes: int = 8
+    eval_episodes: int = 32  # validation episodes per evaluation: 8 gave rewards too noisy to pick a checkpoint by
     checkpoint_every: int = 50_000
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     hyperparameters: dict[str, Any] = field(default_factory=dict)
@@ -133,7 +133,8 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
     out.mkdir(parents=True, exist_ok=True)
     algorithm = ALGORITHMS[run.algo]
     env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs)
-    evaluation_env = make_vec_env(run, 1, VALIDATION_SEED, kind="batched")
+    # validation episodes run 8 at a time on the batched env
+    evaluation_env = make_vec_env(run, min(run.eval_episodes, 8), VALIDATION_SEED, kind="batched")
     if resume is not None:
         env = VecNormalize.load(str(_normalization_beside(resume)), env)
         model = algorithm.load(str(resume), env=env, seed=run.seed)

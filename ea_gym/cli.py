@@ -75,7 +75,7 @@ def _train(args: argparse.Namespace) -> int:
 
     run = TrainingRun(
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed,
-        vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every,
+        vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
     )
     summary = train(run, Path(args.out), resume=None if args.resume is None else Path(args.resume), progress_bar=not args.no_progress)
@@ -197,6 +197,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--seed", type=int, default=0, help="seed of the algorithm and of the training environments (default 0)")
     train.add_argument("--eval-every", type=_positive_int, default=20_000, help="steps between evaluations (default 20000)")
     train.add_argument("--checkpoint-every", type=_positive_int, default=50_000, help="steps between checkpoints (default 50000)")
+    train.add_argument("--eval-episodes", type=_positive_int, default=32, help="validation episodes per evaluation (default 32)")
     train.add_argument("--resume", metavar="CHECKPOINT", default=None, help="continue from a checkpoint .zip (or a model.zip)")
     train.add_argument("--teacher", choices=["rul_threshold", "oracle", "periodic"], default=None,
                        help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
