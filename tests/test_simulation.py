@@ -7,7 +7,7 @@ from scipy import linalg, signal
 from scipy.integrate import solve_ivp
 
 from ea_gym import models
-from ea_gym.bondgraph.simulation import expm
+from ea_gym.bondgraph.simulation import SYSTEMS_BLOCK, Discretization, _simulate_hermite, expm, hermite_coefficients, propagate
 from ea_gym.loads import ConstantLoad, Sine, SinesLoad, multisine_on_grid
 from ea_gym.plant import run_model
 
@@ -288,3 +288,20 @@ def test_spring_mass_damper_signals_obey_the_constitutive_laws():
         # power is e * f of each element
         for name in ("m", "k", "b", "F"):
             np.testing.assert_array_equal(traj.power[name], traj.effort[name] * traj.flow[name])
+
+
+def test_blocked_hermite_kernel_equals_propagation_system_by_system():
+    # several blocks of systems side by side, the last one partial: every system's states are the
+    # plain recursion's to the bit, whatever its neighbours
+    rng = np.random.default_rng(6)
+    nx, nu, n, samples, h = 3, 2, 2 * SYSTEMS_BLOCK + 3, 12, 0.02
+    Phi = 0.3 * rng.standard_normal((5, nx, nx))
+    Gamma = rng.standard_normal((5, nx, 4 * nu))
+    index = rng.integers(0, 5, n)
+    u, du = rng.standard_normal((2, n, samples, nu))
+    x0 = rng.standard_normal((n, nx))
+    batch = _simulate_hermite(Phi, Gamma, index, u, du, h, x0)
+    expected = propagate(Discretization(Phi[index][:, None], Gamma[index][:, None]), hermite_coefficients(u, du, h), x0)
+    np.testing.assert_array_equal(batch, expected)
+    last = slice(n - 1, n)
+    np.testing.assert_array_equal(_simulate_hermite(Phi, Gamma, index[last], u[last], du[last], h, x0[last]), batch[last])

@@ -317,38 +317,69 @@ def simulate_linear(
         return x[0], mats.bond_values(x, u[None])[0]
 
 
+SYSTEMS_BLOCK = 128  # systems propagated side by side; their lanes are the SIMD axis of the recursion
+
+
 @numba.njit(cache=True)
 def _simulate_hermite(
     Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray
 ) -> np.ndarray:
     """``propagate`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s and the Hermite
-    coefficients of ``hermite_coefficients`` computed on the fly, in the same arithmetic (same result)."""
+    coefficients of ``hermite_coefficients`` computed on the fly, in the same arithmetic (same result).
+
+    One system's recursion is a chain of dependent sums; ``SYSTEMS_BLOCK`` systems run side by side
+    with the system innermost, so the chains of different systems fill the SIMD lanes. Every system
+    takes the same operations in the same order as alone, so its result does not depend on the batch.
+    """
     n_sys, n_samples, nu = u.shape
     nx = Phi.shape[1]
     m = Gamma.shape[2]
     h2 = h * h
     x = np.empty((n_sys, n_samples, nx))
-    w = np.empty(m)
-    for s in range(n_sys):
-        P, G = Phi[index[s]], Gamma[index[s]]
-        x[s, 0] = x0[s]
+    B = min(SYSTEMS_BLOCK, n_sys)
+    # lane-major copies, system last: the loops over the lanes read and write contiguous memory
+    P = np.empty((nx, nx, B))
+    G = np.empty((nx, m, B))
+    load = np.empty((n_samples, 2, nu, B))
+    w = np.empty((m, B))
+    X = np.empty((n_samples, nx, B))
+    for s0 in range(0, n_sys, B):
+        lanes = min(B, n_sys - s0)
+        for b in range(lanes):
+            for i in range(nx):
+                X[0, i, b] = x0[s0 + b, i]
+                for j in range(nx):
+                    P[i, j, b] = Phi[index[s0 + b], i, j]
+                for j in range(m):
+                    G[i, j, b] = Gamma[index[s0 + b], i, j]
+            for k in range(n_samples):
+                for c in range(nu):
+                    load[k, 0, c, b] = u[s0 + b, k, c]
+                    load[k, 1, c, b] = du[s0 + b, k, c]
         for k in range(n_samples - 1):
             for c in range(nu):
-                u0, u1, d0, d1 = u[s, k, c], u[s, k + 1, c], du[s, k, c], du[s, k + 1, c]
-                slope = (u1 - u0) / h
-                c2 = (3.0 * slope - 2.0 * d0 - d1) / h
-                c3 = (d0 + d1 - 2.0 * slope) / h2
-                w[c] = u0
-                w[nu + c] = d0
-                w[2 * nu + c] = 2.0 * c2
-                w[3 * nu + c] = 6.0 * c3
+                for b in range(lanes):
+                    u0, u1, d0, d1 = load[k, 0, c, b], load[k + 1, 0, c, b], load[k, 1, c, b], load[k + 1, 1, c, b]
+                    slope = (u1 - u0) / h
+                    c2 = (3.0 * slope - 2.0 * d0 - d1) / h
+                    c3 = (d0 + d1 - 2.0 * slope) / h2
+                    w[c, b] = u0
+                    w[nu + c, b] = d0
+                    w[2 * nu + c, b] = 2.0 * c2
+                    w[3 * nu + c, b] = 6.0 * c3
             for i in range(nx):
-                acc = 0.0
+                acc = X[k + 1, i]
+                acc[:lanes] = 0.0
                 for j in range(nx):
-                    acc += P[i, j] * x[s, k, j]
+                    for b in range(lanes):
+                        acc[b] += P[i, j, b] * X[k, j, b]
                 for j in range(m):
-                    acc += G[i, j] * w[j]
-                x[s, k + 1, i] = acc
+                    for b in range(lanes):
+                        acc[b] += G[i, j, b] * w[j, b]
+        for b in range(lanes):
+            for k in range(n_samples):
+                for i in range(nx):
+                    x[s0 + b, k, i] = X[k, i, b]
     return x
 
 
