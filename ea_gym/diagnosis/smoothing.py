@@ -139,20 +139,24 @@ def filter_lanes(x, first, moments, smoother, differentiator, derivative, smooth
     last = L - 1 - half  # the last interior output; its window's moments also give the tail edge
     M = np.empty((MOMENTS, B))
     start = min(max(first, half), last)
-    for t in range(start, last + 1):
-        if (t - start) % window == 0:
-            _direct(M, x[t - half : t + half + 1], powers)
-        else:
-            _advance(M, x[t - 1 - half], x[t + half], drop, add, shift)
+    interior, slope_interior = smoother[2], differentiator[2]
+    # blocks of one window: a direct sum, then the recursion (a branch inside the recursion's loop
+    # would keep it from vectorising)
+    for t0 in range(start, last + 1, window):
+        _direct(M, x[t0 - half : t0 + half + 1], powers)
         # the edge outputs are polynomial fits to the first (last) window: linear in its moments
-        if t == half and first < half:
+        if t0 == half and first < half:
             _edges(M, first, smoother[0], differentiator[0], derivative, smooth, slope)
-        if t == last:
-            _edges(M, max(first - last - 1, 0), smoother[1], differentiator[1], derivative, smooth[last + 1 :], slope[last + 1 :])
-        if t >= first:
-            _combine(smoother[2], M, smooth[t])
+        if t0 >= first:
+            _combine(interior, M, smooth[t0])
             if derivative:
-                _combine(differentiator[2], M, slope[t])
+                _combine(slope_interior, M, slope[t0])
+        for t in range(t0 + 1, min(t0 + window, last + 1)):
+            _advance(M, x[t - 1 - half], x[t + half], drop, add, shift)
+            _combine(interior, M, smooth[t])
+            if derivative:
+                _combine(slope_interior, M, slope[t])
+    _edges(M, max(first - last - 1, 0), smoother[1], differentiator[1], derivative, smooth[last + 1 :], slope[last + 1 :])
 
 
 class SavitzkyGolay:
