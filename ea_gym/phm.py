@@ -190,6 +190,37 @@ def _shift_in(buffer: np.ndarray, new: np.ndarray) -> None:
             buffer[r, T - k + t] = new[r, t]
 
 
+@numba.njit(cache=True)
+def _push_median(raw: np.ndarray, rows: np.ndarray, columns: np.ndarray, values: np.ndarray, median: np.ndarray) -> None:
+    """Push ``values`` (K,) into the windows raw[rows, columns] (N, D, W) and write each window's
+    ``np.nanmedian`` to median[rows, columns]: the mean of the two middle values when an even number
+    are finite, NaN when none is. In place (the fancy-indexed numpy form copies every window twice)."""
+    W = raw.shape[2]
+    finite = np.empty(W)
+    for k in range(len(rows)):
+        window = raw[rows[k], columns[k]]
+        for t in range(W - 1):
+            window[t] = window[t + 1]
+        window[W - 1] = values[k]
+        count = 0
+        for t in range(W):
+            v = window[t]
+            if not np.isnan(v):
+                # insertion sort: the windows are a few values long
+                i = count
+                while i > 0 and finite[i - 1] > v:
+                    finite[i] = finite[i - 1]
+                    i -= 1
+                finite[i] = v
+                count += 1
+        if count == 0:
+            median[rows[k], columns[k]] = np.nan
+        elif count % 2 == 1:
+            median[rows[k], columns[k]] = finite[count // 2]
+        else:
+            median[rows[k], columns[k]] = (finite[count // 2 - 1] + finite[count // 2]) / 2.0
+
+
 def _push(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
     """Append ``new`` along the last axis and drop as many of the oldest entries; in place (a fresh
     array of the chain's history every step would cost page faults), and returned."""
@@ -435,8 +466,7 @@ class PHMChain:
         fit = s["fit"][rows, columns]
         s["fit"][rows, columns] = np.where(np.isnan(fit), log_cost, fit + self.config.fit_smoothing * (log_cost - fit))
         s["estimated"] = chosen
-        raw[rows, columns] = np.concatenate([raw[rows, columns, 1:], values[:, None]], axis=-1)
-        s["estimates"][rows, columns] = np.nanmedian(raw[rows, columns], axis=-1)
+        _push_median(raw, rows, columns, np.ascontiguousarray(values, dtype=float), s["estimates"])
         fresh = np.full((self.n, D), np.nan)
         fresh[rows, columns] = s["estimates"][rows, columns]
         s["history"] = _push(s["history"], fresh[..., None])

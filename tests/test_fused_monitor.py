@@ -1,10 +1,13 @@
 """The compiled monitor and signature kernels equal a straightforward numpy computation to round-off."""
 
+import warnings
+
 import numpy as np
 import pytest
 
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import rlc_circuit, spring_mass_damper
+from ea_gym.phm import _push_median
 from ea_gym.prognosis import EAParameterEstimator
 
 
@@ -108,3 +111,23 @@ def test_non_finite_power_is_rejected():
     measured[0, 0, 50] = np.inf
     with pytest.raises(ValueError, match="finite"):
         monitor.update(measured, np.ones((1, 2, 101)), np.ones((1, 101)))
+
+
+def test_pushed_median_equals_numpy_nanmedian():
+    rng = np.random.default_rng(6)
+    for width in (1, 2, 3, 4, 5):
+        raw = rng.standard_normal((6, 3, width))
+        raw[rng.random(raw.shape) < 0.4] = np.nan
+        rows, columns = np.nonzero(rng.random((6, 3)) < 0.7)
+        values = rng.standard_normal(len(rows))
+        values[::4] = np.nan
+        expected_raw = raw.copy()
+        expected_raw[rows, columns] = np.concatenate([raw[rows, columns, 1:], values[:, None]], axis=-1)
+        median = np.zeros((6, 3))
+        expected = median.copy()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows: NaN, as the kernel gives
+            expected[rows, columns] = np.nanmedian(expected_raw[rows, columns], axis=-1)
+        _push_median(raw, rows, columns, values, median)
+        np.testing.assert_array_equal(raw, expected_raw)
+        np.testing.assert_array_equal(median, expected)
