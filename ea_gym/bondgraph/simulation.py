@@ -318,6 +318,7 @@ def simulate_linear(
 
 
 SYSTEMS_BLOCK = 128  # systems propagated side by side; their lanes are the SIMD axis of the recursion
+SAMPLES_CHUNK = 16  # samples of a block's lane-major copies
 
 
 @numba.njit(cache=True)
@@ -337,49 +338,55 @@ def _simulate_hermite(
     h2 = h * h
     x = np.empty((n_sys, n_samples, nx))
     B = min(SYSTEMS_BLOCK, n_sys)
-    # lane-major copies, system last: the loops over the lanes read and write contiguous memory
+    # lane-major copies, system last, of SAMPLES_CHUNK samples at a time: the loops over the lanes
+    # read and write contiguous memory, and the copies stay in the first-level cache
     P = np.empty((nx, nx, B))
     G = np.empty((nx, m, B))
-    load = np.empty((n_samples, 2, nu, B))
+    load = np.empty((SAMPLES_CHUNK + 1, 2, nu, B))
     w = np.empty((m, B))
-    X = np.empty((n_samples, nx, B))
+    X = np.empty((SAMPLES_CHUNK + 1, nx, B))
     for s0 in range(0, n_sys, B):
         lanes = min(B, n_sys - s0)
         for b in range(lanes):
             for i in range(nx):
                 X[0, i, b] = x0[s0 + b, i]
+                x[s0 + b, 0, i] = x0[s0 + b, i]
                 for j in range(nx):
                     P[i, j, b] = Phi[index[s0 + b], i, j]
                 for j in range(m):
                     G[i, j, b] = Gamma[index[s0 + b], i, j]
-            for k in range(n_samples):
+        for k0 in range(0, n_samples - 1, SAMPLES_CHUNK):
+            steps = min(SAMPLES_CHUNK, n_samples - 1 - k0)
+            for b in range(lanes):
+                for k in range(steps + 1):
+                    for c in range(nu):
+                        load[k, 0, c, b] = u[s0 + b, k0 + k, c]
+                        load[k, 1, c, b] = du[s0 + b, k0 + k, c]
+            for k in range(steps):
                 for c in range(nu):
-                    load[k, 0, c, b] = u[s0 + b, k, c]
-                    load[k, 1, c, b] = du[s0 + b, k, c]
-        for k in range(n_samples - 1):
-            for c in range(nu):
-                for b in range(lanes):
-                    u0, u1, d0, d1 = load[k, 0, c, b], load[k + 1, 0, c, b], load[k, 1, c, b], load[k + 1, 1, c, b]
-                    slope = (u1 - u0) / h
-                    c2 = (3.0 * slope - 2.0 * d0 - d1) / h
-                    c3 = (d0 + d1 - 2.0 * slope) / h2
-                    w[c, b] = u0
-                    w[nu + c, b] = d0
-                    w[2 * nu + c, b] = 2.0 * c2
-                    w[3 * nu + c, b] = 6.0 * c3
-            for i in range(nx):
-                acc = X[k + 1, i]
-                acc[:lanes] = 0.0
-                for j in range(nx):
                     for b in range(lanes):
-                        acc[b] += P[i, j, b] * X[k, j, b]
-                for j in range(m):
-                    for b in range(lanes):
-                        acc[b] += G[i, j, b] * w[j, b]
-        for b in range(lanes):
-            for k in range(n_samples):
+                        u0, u1, d0, d1 = load[k, 0, c, b], load[k + 1, 0, c, b], load[k, 1, c, b], load[k + 1, 1, c, b]
+                        slope = (u1 - u0) / h
+                        c2 = (3.0 * slope - 2.0 * d0 - d1) / h
+                        c3 = (d0 + d1 - 2.0 * slope) / h2
+                        w[c, b] = u0
+                        w[nu + c, b] = d0
+                        w[2 * nu + c, b] = 2.0 * c2
+                        w[3 * nu + c, b] = 6.0 * c3
                 for i in range(nx):
-                    x[s0 + b, k, i] = X[k, i, b]
+                    acc = X[k + 1, i]
+                    acc[:lanes] = 0.0
+                    for j in range(nx):
+                        for b in range(lanes):
+                            acc[b] += P[i, j, b] * X[k, j, b]
+                    for j in range(m):
+                        for b in range(lanes):
+                            acc[b] += G[i, j, b] * w[j, b]
+            for b in range(lanes):
+                for k in range(1, steps + 1):
+                    for i in range(nx):
+                        x[s0 + b, k0 + k, i] = X[k, i, b]
+            X[0] = X[steps]
     return x
 
 
