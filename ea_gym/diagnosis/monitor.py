@@ -93,6 +93,37 @@ def _copy(source: np.ndarray, start: int, target: np.ndarray, offset: int) -> No
 
 
 @numba.njit(cache=True)
+def _same(a: np.ndarray, b: np.ndarray, start: int) -> bool:
+    """Whether a[start:] equals b[start:]."""
+    for t in range(start, len(a)):
+        if a[t] != b[t]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def _load_sources(rows, channel, skip):
+    """For each row, the first row whose ``channel`` equals its own from ``skip`` on (itself if none
+    does), and the distinct rows: the rows before it and, in a batch of real then reference rows,
+    its twin half a batch before are compared, which is where the load repeats."""
+    M = rows.shape[0]
+    source = np.empty(M, dtype=np.int64)
+    distinct = np.empty(M, dtype=np.int64)
+    count = 0
+    for m in range(M):
+        twin = m - M // 2
+        if m > 0 and _same(rows[m, channel], rows[m - 1, channel], skip):
+            source[m] = source[m - 1]
+        elif M % 2 == 0 and twin >= 0 and _same(rows[m, channel], rows[twin, channel], skip):
+            source[m] = source[twin]
+        else:
+            source[m] = m
+            distinct[count] = m
+            count += 1
+    return source, distinct[:count]
+
+
+@numba.njit(cache=True)
 def _smooth_rows(rows, skip, cut, moments, smoother, differentiator, inertia, smooth, slope):
     """The filters on rows (M, nx + 1, T): every signal filtered from sample ``skip`` on, outputs from ``cut`` on.
 
@@ -104,28 +135,39 @@ def _smooth_rows(rows, skip, cut, moments, smoother, differentiator, inertia, sm
     """
     M, channels, T = rows.shape
     length = T - skip
+    load = channels - 1
+    # the candidates of one system, and a system's real and reference rows, share the source's
+    # signal: each distinct one is filtered once
+    source, distinct = _load_sources(rows, load, skip)
+    every = np.arange(M)
     # LANES rows of one channel side by side, time first: the filter's recursion runs across them in
     # SIMD; the lanes past the last row filter stale signals, whose outputs are discarded
     x = np.zeros((length, LANES))
     filtered = np.empty((length, LANES))
     derivative = np.empty((length, LANES))
     for c in range(channels):
+        members = distinct if c == load else every
         k = -1
         for i in range(len(inertia)):
             if int(inertia[i, 0]) == c:
                 k = i
-        for m0 in range(0, M, LANES):
-            lanes = min(LANES, M - m0)
+        for g0 in range(0, len(members), LANES):
+            lanes = min(LANES, len(members) - g0)
             for b in range(lanes):
                 for t in range(length):
-                    x[t, b] = rows[m0 + b, c, skip + t]
+                    x[t, b] = rows[members[g0 + b], c, skip + t]
             filter_lanes(x, cut, moments, smoother, differentiator, k >= 0, filtered, derivative)
             for b in range(lanes):
+                m = members[g0 + b]
                 for t in range(length - cut):
-                    smooth[m0 + b, c, t] = filtered[cut + t, b]
+                    smooth[m, c, t] = filtered[cut + t, b]
                 if k >= 0:
                     for t in range(length - cut):
-                        slope[m0 + b, k, t] = derivative[cut + t, b]
+                        slope[m, k, t] = derivative[cut + t, b]
+    for m in range(M):
+        if source[m] != m:
+            for t in range(length - cut):
+                smooth[m, load, t] = smooth[source[m], load, t]
 
 
 @numba.njit(cache=True)
