@@ -550,7 +550,7 @@ def run_benchmark(
     seed: int,
     out: Path,
     ppo: Path | None,
-    tune_episodes: int = 10,
+    tune_episodes: int = 30,
     progress: bool = True,
     *,
     ppo_policies: Mapping[str, Path] | None = None,

@@ -125,7 +125,7 @@ def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
                  "--tune-episodes", "3", "--no-progress"]) == 0
     assert calls[-1] == (4, 2, tmp_path, tmp_path / "agent", 3, False)
     assert main(["benchmark", "--out", str(tmp_path), "--no-ppo"]) == 0
-    assert calls[-1][:5] == (100, 0, tmp_path, None, 10)
+    assert calls[-1][:5] == (100, 0, tmp_path, None, 30)
     assert "oracle 1" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--ppo", "x"])
