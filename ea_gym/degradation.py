@@ -152,6 +152,7 @@ class Wear:
         self.nominal = np.asarray(nominal, dtype=float)
         self.limits = np.asarray(limits, dtype=float)
         self.configs = list(configs)
+        self._linear = np.array([config.process == "linear" for config in self.configs], dtype=bool)
         self.faulty = np.zeros(n_systems, dtype=int)
         self.arrival = np.full(n_systems, np.inf)
         self.velocity = np.zeros(n_systems)  # mean drift of the faulty component, parameter unit per s
@@ -172,13 +173,17 @@ class Wear:
         """Wear the faulty components over [clock, clock + dt]; ``values`` (N, D) in parameter units."""
         out = values.copy()
         active = np.clip(clock + dt - np.maximum(self.arrival, clock), 0.0, dt)  # seconds of wear in the step
-        for i in np.flatnonzero(active > 0):
+        worn = np.flatnonzero(active > 0)
+        means = self.velocity[worn] * active[worn]
+        # linear wear (or none) draws nothing: one array update; the random processes draw row by row
+        drawn = ~self._linear[self.faulty[worn]] & (means != 0)
+        steady = worn[~drawn]
+        out[steady, self.faulty[steady]] += means[~drawn]
+        for i in worn[drawn]:
             rng = rngs[i]
             d = self.faulty[i]
             config, mean = self.configs[d], self.velocity[i] * active[i]
-            if config.process == "linear" or mean == 0:
-                increment = mean
-            elif config.process == "gamma":
+            if config.process == "gamma":
                 # shape and scale from mean m and variance (v m)^2 (active / 10 s): the std over 10 s is v times the mean
                 variance = (config.volatility * abs(self.velocity[i]) * 10.0) ** 2 * active[i] / 10.0
                 scale = variance / abs(mean)

@@ -136,6 +136,7 @@ class MaintenanceCore:
         self.n = n_systems
         self.h = 1.0 / config.sample_rate
         self.samples = window_samples(config.window, self.h)
+        self._window_grid = np.arange(self.samples + 1) * self.h
         self.components = classes_of(model)[1:]  # maintainable = degradable parameters
         self.classes = ("none", *self.components)
         wear = config.wear if config.wear is not None else {name: WearConfig() for name in self.components}
@@ -167,12 +168,12 @@ class MaintenanceCore:
         )
         self._inertia_parameters = np.array([model.parameter_names.index(model.state_names[j]) for j in self._inertia_states], dtype=int)
         self._corrective_speed = config.corrective_rate * (self.limits[:, 1] - self.limits[:, 0])
-        self.action_meanings = (
-            "carry on", *(f"corrective action on {c}" for c in self.components), *(f"replace {c}" for c in self.components)
-        )
+        self._corrective_events = tuple(f"corrective action on {c}" for c in self.components)
+        self.action_meanings = ("carry on", *self._corrective_events, *(f"replace {c}" for c in self.components))
         self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self._state: dict[str, np.ndarray] = {}
+        self._idle = self._idle_outputs()
 
     # -- episode bookkeeping ------------------------------------------------------------------
 
@@ -212,7 +213,7 @@ class MaintenanceCore:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask if systems is not None else None)
-        return self._observe(self._idle_outputs())
+        return self._observe(self._idle)
 
     def _draw_loads(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         s = self._state
@@ -225,11 +226,11 @@ class MaintenanceCore:
             s["load_frequency"][i] = model.excitation_bandwidth - rng.uniform(0.0, model.excitation_bandwidth, LOAD_COMPONENTS)
             s["load_phase"][i] = rng.uniform(0.0, 2.0 * math.pi, LOAD_COMPONENTS)
 
-    def _load(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each system's load and its derivative at its times t (N, T), spaced by the sample period: random-phase multisines."""
-        if not np.allclose(t, t[:, :1] + np.arange(t.shape[1]) * self.h, rtol=1e-12, atol=0.0):
-            raise ValueError("the load is evaluated on grids spaced by the sample period")
+    def _load(self, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each system's load and its derivative over one window from its time ``start`` (N,), on the
+        sample grid: random-phase multisines, (N, samples + 1)."""
         s = self._state
+        t = start[:, None] + self._window_grid
         waves, slopes = multisine_on_grid(t, self.h, s["load_frequency"], s["load_phase"])
         amplitude = s["load_amplitude"][:, None]
         return s["load_mean"][:, None] + amplitude * waves, amplitude * slopes
@@ -256,15 +257,19 @@ class MaintenanceCore:
         k = len(self.components)
         corrective = (actions >= 1) & (actions <= k)
         replace = actions > k
-        for i in np.flatnonzero(corrective):
-            d = actions[i] - 1
+        rows = np.flatnonzero(corrective)
+        if len(rows):
+            d = actions[rows] - 1
             j = self._component_index[d]
-            if s["corrective_direction"][i, d] == 0:  # a new corrective action heads for nominal
-                s["corrective_direction"][i] = 0.0
-                s["corrective_direction"][i, d] = np.sign(self.nominal[j] - s["theta"][i, j]) or 1.0
-            s["theta"][i, j] += s["corrective_direction"][i, d] * self._corrective_speed[d] * dt
-            costs["corrective"][i] += c.corrective
-            events[i].append(f"corrective action on {self.components[d]}")
+            direction = s["corrective_direction"]
+            new = direction[rows, d] == 0  # a new corrective action heads for nominal
+            heading = np.sign(self.nominal[j[new]] - s["theta"][rows[new], j[new]])
+            direction[rows[new]] = 0.0
+            direction[rows[new], d[new]] = np.where(heading == 0, 1.0, heading)
+            s["theta"][rows, j] += direction[rows, d] * self._corrective_speed[d] * dt
+            costs["corrective"][rows] += c.corrective
+            for i, component in zip(rows, d):
+                events[i].append(self._corrective_events[component])
         s["corrective_direction"][~corrective] = 0.0
         replaced = np.flatnonzero(replace)
         self._replace(replaced, actions[replaced] - 1 - k, c.replace_downtime, rngs, events)
@@ -368,8 +373,7 @@ class MaintenanceCore:
     def _operate(self, rngs: Sequence[np.random.Generator]) -> dict[str, np.ndarray]:
         """Simulate one window of plant and reference, measure, and run the chain or the monitor."""
         s = self._state
-        t = s["operation"][:, None] + np.arange(self.samples + 1) * self.h
-        u, du = self._load(t)
+        u, du = self._load(s["operation"])
         n = self.n
         # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
         theta = np.concatenate([s["theta"], np.broadcast_to(self.nominal, s["theta"].shape)])
@@ -407,12 +411,17 @@ class MaintenanceCore:
             return clean
         rms = np.sqrt(np.mean(clean**2, axis=-1, keepdims=True))
         noise = np.empty_like(clean)
-        for i in range(len(clean)):
-            rngs[i].standard_normal(out=noise[i])
-        return clean + fraction * rms * noise
+        for rng, row in zip(rngs, noise):
+            rng.standard_normal(out=row)
+        noise *= fraction * rms
+        noise += clean
+        return noise
 
     def _idle_outputs(self) -> dict[str, np.ndarray]:
-        """Outputs before the first step (or while a machine is down): no activity, nothing known."""
+        """Outputs before the first step (or while a machine is down): no activity, nothing known.
+
+        Built once (``self._idle``) and only read: every observation is a fresh array.
+        """
         n, E, C = self.n, len(self.elements), len(self.rco)
         diagnosis = np.zeros((n, len(self.classes)))
         diagnosis[:, 0] = 1.0
@@ -429,9 +438,12 @@ class MaintenanceCore:
     def _observe(self, outputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """Observation arrays; systems that are down show idle outputs."""
         s = self._state
-        idle = self._idle_outputs()
+        idle = self._idle
         down = s["down"] > 0
-        merged = {key: np.where(down.reshape((-1,) + (1,) * (idle[key].ndim - 1)), idle[key], outputs.get(key, idle[key])) for key in idle}
+        if down.any():
+            merged = {key: np.where(down.reshape((-1,) + (1,) * (idle[key].ndim - 1)), idle[key], outputs.get(key, idle[key])) for key in idle}
+        else:
+            merged = {**idle, **outputs}
         residual = (merged["ea"] - merged["ea_reference"]) / np.maximum(merged["ea_reference"], 1e-12)
         obs = {
             "ea": merged["ea"],
