@@ -20,7 +20,7 @@ not outvote a hypothesis that the EA fits a hundred times better.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numba
 import numpy as np
@@ -271,6 +271,8 @@ class PHMChain:
         # successive windows the middle of their span
         self.estimate_lag = 0.5 * (self.estimate_steps + self.median_length - 1) * self.step_time
         self.history_length = int(round(config.extrapolation.span / self.step_time)) + 1
+        # successive estimates share their windows' data and the median's: so many are not independent
+        self.extrapolation = replace(config.extrapolation, correlated=self.estimate_steps + self.median_length - 1)
         self.reset()
 
     def reset(self, systems: np.ndarray | None = None) -> None:
@@ -488,7 +490,7 @@ class PHMChain:
             valid = np.isfinite(history)
             prediction = predict_end_of_life(
                 s["history_t"][i, valid], history[valid], self.model.safe_limits[self.degradable[d]],
-                float(s["time"][i]), self.config.extrapolation,
+                float(s["time"][i]), self.extrapolation,
             )
             if prediction is not None:
                 eol[i] = (prediction.eol, prediction.eol_low, prediction.eol_high)

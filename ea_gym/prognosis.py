@@ -255,6 +255,9 @@ class ExtrapolationConfig:
         min_points: fewer estimates than this give no prediction.
         confidence: two-sided confidence of the interval (normal quantile of the trend's uncertainty).
         horizon: predictions further than this ahead are reported as inf (s).
+        correlated: how many consecutive estimates share data (overlapping windows, a running median):
+            their errors are correlated, the fit has that many times fewer independent points, and its
+            covariance is scaled up by as much.
     """
 
     degree: int = 1
@@ -262,6 +265,7 @@ class ExtrapolationConfig:
     min_points: int = 5
     confidence: float = 0.95
     horizon: float = 2000.0
+    correlated: int = 1
 
 
 def _first_crossing(times: np.ndarray, curve: np.ndarray, level: float, below: bool) -> float:
@@ -298,7 +302,7 @@ def predict_end_of_life(
     coefficients, covariance = np.polyfit(t - t_now, y, config.degree, cov="unscaled")
     residual = y - np.polyval(coefficients, t - t_now)
     dof = max(len(t) - config.degree - 1, 1)
-    covariance = covariance * max(float(residual @ residual) / dof, 1e-300)
+    covariance = covariance * max(float(residual @ residual) / dof, 1e-300) * config.correlated
     z = norm.ppf(0.5 + config.confidence / 2)
     slope = np.polyval(np.polyder(coefficients), 0.0)
     limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)

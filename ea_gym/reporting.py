@@ -192,7 +192,7 @@ def _extrapolation(run: ChainRun, chain: PHMChain, i: int, ready: np.ndarray | N
     times = np.array([run.statuses[j].t[0] - chain.estimate_lag for j in fresh])
     values = np.array([run.statuses[j].estimates[0, d] for j in fresh])
     t_now = float(status.t[0])
-    config = chain.config.extrapolation
+    config = chain.extrapolation
     limits = chain.model.safe_limits[chain.degradable[d]]
     prediction = predict_end_of_life(times, values, limits, t_now, config)
     recent = times >= t_now - config.span

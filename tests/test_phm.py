@@ -228,3 +228,14 @@ def test_energy_balance_statistic_measures_a_damper_fault_directly():
     balance = statistic[run.t >= chain.config.detector.balance_span + 1.0, -1]
     assert np.all(np.abs(balance - 0.1) < 0.02), balance
     assert run.statuses[-1].alarm[0]
+
+
+def test_correlated_estimates_widen_the_end_of_life_interval_by_the_square_root_of_their_count():
+    t = np.arange(0.0, 20.0)
+    estimate = 100.0 - 0.3 * t + np.where(np.arange(20) % 2, 0.05, -0.05)
+    alone = predict_end_of_life(t, estimate, (85.0, 105.0), 20.0, ExtrapolationConfig(span=30.0))
+    shared = predict_end_of_life(t, estimate, (85.0, 105.0), 20.0, ExtrapolationConfig(span=30.0, correlated=4))
+    assert shared.eol == alone.eol  # the trend is the same; only its uncertainty grows
+    # near the crossing the band is about z sd(t), so its width there doubles with a 4 x covariance
+    assert shared.eol - shared.eol_low == pytest.approx(2 * (alone.eol - alone.eol_low), rel=0.1)
+    assert shared.eol_high - shared.eol == pytest.approx(2 * (alone.eol_high - alone.eol), rel=0.1)
