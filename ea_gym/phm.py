@@ -26,7 +26,6 @@ import numba
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
-from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of, draw_loads
 from ea_gym.diagnosis.features import frame_features
@@ -151,14 +150,6 @@ class HealthStatus:
         return np.stack([self.eol, self.eol_low, self.eol_high], axis=1) - self.t[:, None]
 
 
-def dissipator_elements(monitor: Monitor) -> np.ndarray:
-    """Indices (into ``monitor.elements``) of the R components, whose EA scales the energy-balance residual;
-    all the components where the model has no R element."""
-    elements = monitor.model.graph.elements
-    dissipators = [monitor.elements.index(c) for c in monitor.components if elements[c].kind is Kind.R]
-    return np.array(dissipators or monitor._component_index)
-
-
 def relative_residuals(
     ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, balance_reference: np.ndarray, dissipators: np.ndarray
 ) -> np.ndarray:
@@ -263,7 +254,7 @@ class PHMChain:
         self.balance_count = window_samples(config.detector.balance_span, config.monitor.balance_window)
         if config.detector.balance_span > config.frame:
             raise ValueError(f"detector.balance_span ({config.detector.balance_span} s) must not exceed the frame ({config.frame} s)")
-        self._dissipators = dissipator_elements(self.monitor)
+        self._dissipators = self.monitor._component_index[self.monitor.dissipators]  # element indices
         self.estimate_steps = window_samples(config.estimator.window, config.step)
         self.median_length = config.estimator.median
         self.step_time = config.step if config.step_time is None else config.step_time
@@ -539,7 +530,7 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
         return np.moveaxis(sliding_window_view(x, span, axis=-1).sum(-1), -1, 0)
 
     # each statistic's threshold is its own maximum: the EA and balance windows need not be aligned
-    dissipators = dissipator_elements(monitor)
+    dissipators = monitor._component_index[monitor.dissipators]
     ea_statistic = relative_residuals(sums(ea, subs), sums(ref, subs), sums(balance, subs), sums(ref, subs), dissipators)
     balance_statistic = relative_residuals(
         sums(ea, balance_subs), sums(ref, balance_subs), sums(balance, balance_subs), sums(ref, balance_subs), dissipators

@@ -25,7 +25,6 @@ import numba
 import numpy as np
 from scipy.stats import norm
 
-from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import simulate_batch
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
@@ -111,9 +110,6 @@ class EAParameterEstimator:
         self.context = monitor.config.smoothing
         self._components = np.array([monitor.elements.index(c) for c in monitor.components])
         self._sources = np.array([monitor.elements.index(u) for u in self.model.state_space.input_names])
-        elements = self.model.graph.elements
-        dissipators = [j for j, c in enumerate(monitor.components) if elements[c].kind is Kind.R]
-        self._dissipators = np.array(dissipators or range(len(monitor.components)))  # columns of the signature
 
     def signature(self, power: np.ndarray) -> np.ndarray:
         """What the inversion matches over a window, from every element's power (..., E, L + 1): (..., C + 1).
@@ -133,7 +129,7 @@ class EAParameterEstimator:
     def mismatch_scale(self, signature: np.ndarray) -> np.ndarray:
         """Per-entry scale of the mismatch: each component's EA, and for the balance see ``balance_share``."""
         ea = signature[..., :-1]
-        balance = ea[..., self._dissipators].sum(-1, keepdims=True) + self.config.balance_share * ea.sum(-1, keepdims=True)
+        balance = ea[..., self.monitor.dissipators].sum(-1, keepdims=True) + self.config.balance_share * ea.sum(-1, keepdims=True)
         return np.maximum(np.concatenate([ea, balance], axis=-1), 1e-300)
 
     def candidate_grid(self, parameter: str) -> np.ndarray:

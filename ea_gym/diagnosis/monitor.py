@@ -323,6 +323,10 @@ class Monitor:
         self.elements = tuple(n for n, e in elements.items() if not e.kind.is_junction)
         self.components = model.rco_elements
         self._component_index = np.array([self.elements.index(c) for c in self.components])
+        # positions in ``components`` of the R elements (all components if there is none): their EA is
+        # the scale of the energy-balance residual, where a dissipator's fault shows
+        dissipators = [j for j, c in enumerate(self.components) if elements[c].kind is Kind.R]
+        self.dissipators = np.array(dissipators or range(len(self.components)))
         inertias = [n for n in self.components if elements[n].kind is Kind.I]
         if not inertias:
             raise ValueError(f"model {model.name!r} has no I element, whose EA residual the isolation uses")
