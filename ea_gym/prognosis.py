@@ -145,7 +145,7 @@ class EAParameterEstimator:
         theta = np.repeat(self.model.parameter_vector()[None, None], n, 0).repeat(g, 1)
         theta[np.arange(n), :, parameter_index] = values
         theta = theta.reshape(n * g, -1)
-        to_signal = np.diagonal(self.monitor.measurement_matrix(theta), axis1=-2, axis2=-1)
+        to_signal = self.monitor.measurement_gain(theta)
         x0 = np.repeat(start, g, 0) / to_signal
         uu = np.repeat(u, g, 0)[..., None]
         states = simulate_batch(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0)

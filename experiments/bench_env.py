@@ -30,7 +30,7 @@ What it measures
        time (instance attributes / module globals, restored afterwards) with timers that accumulate
        wall time per call path; a stage's time is its inclusive time minus that of the wrapped calls
        inside it, so the rows add up to the measured ``env.step`` time. Rows: load signal, plant +
-       reference simulation (``ea_gym.env.core.simulate_batch``), measurement matrices, sensor noise,
+       reference simulation (``ea_gym.env.core.simulate_batch``), measurement gains, sensor noise,
        EA monitor (``Monitor.update``), detection (``PHMChain._statistic``), isolation network
        (``_classify``: frame, features, torch), isolation belief (``_isolate``), EA inversion
        (``_estimate``), EoL extrapolation
@@ -289,7 +289,7 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
         (core.wear, "advance", "wear.advance"),
         (core_module, "simulate_batch", "simulate_batch"),
         (core, "_sensor_noise", "_sensor_noise"),
-        (monitor, "measurement_matrix", "measurement_matrix"),
+        (monitor, "measurement_gain", "measurement_gain"),
         (monitor, "update", "monitor.update"),
         (monitor, "powers", "monitor.powers"),
     ]
@@ -338,7 +338,7 @@ def stage_rows(p: Profiler, steps: int, step_total: float) -> list[tuple[str, fl
     rows = [
         ("load signal (MaintenanceCore._load)", p.inclusive(*O, "_load")),
         ("plant + reference simulation (simulate_batch)", p.inclusive(*O, "simulate_batch")),
-        ("measurement matrices + einsums (_operate rest)", p.self_time(*O) + p.inclusive(*O, "measurement_matrix")),
+        ("measurement gains and products (_operate rest)", p.self_time(*O) + p.inclusive(*O, "measurement_gain")),
         ("measurement noise (MaintenanceCore._sensor_noise)", p.inclusive(*O, "_sensor_noise")),
         ("EA monitor (Monitor.update)", p.inclusive(*H, "monitor.update")),
         ("detection (PHMChain._statistic)", p.inclusive(*H, "_statistic")),

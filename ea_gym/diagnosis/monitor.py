@@ -357,14 +357,18 @@ class Monitor:
         ).reshape(-1, 3)
         self._context: np.ndarray | None = None  # last samples of the previous chunk, real then reference
 
-    def measurement_matrix(self, parameters: np.ndarray) -> np.ndarray:
-        """Rows map energy variables to measured signals under true ``parameters`` (..., P): (..., nx, nx)."""
+    def measurement_gain(self, parameters: np.ndarray) -> np.ndarray:
+        """The diagonal of ``measurement_matrix``, (..., nx): 1 / I on each I element's momentum, 1 elsewhere."""
         space = self.model.state_space
         diagonal = np.ones(np.shape(parameters)[:-1] + (len(space.state_names),))
         for j, name in enumerate(space.state_names):
             if self.model.graph.elements[name].kind is Kind.I:
                 diagonal[..., j] = 1.0 / parameters[..., space.parameter_names.index(name)]
-        return diagonal[..., :, None] * np.eye(len(space.state_names))
+        return diagonal
+
+    def measurement_matrix(self, parameters: np.ndarray) -> np.ndarray:
+        """Rows map energy variables to measured signals under true ``parameters`` (..., P): (..., nx, nx)."""
+        return self.measurement_gain(parameters)[..., :, None] * np.eye(len(self.model.state_space.state_names))
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Forget the smoothing context of all systems, or of those where the boolean mask is true."""

@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import simulate_batch
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
@@ -161,12 +160,6 @@ class MaintenanceCore:
         self.monitor = self.chain.monitor if self.chain is not None else Monitor(model, self.h, PHMConfig().monitor, n_systems)
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
-        # the sensors' measurement matrices are diagonal: 1 / I on the momentum of each I element, 1 elsewhere
-        self._measured_gain = np.diagonal(self.monitor.measurement_matrix(self.nominal)).copy()
-        self._inertia_states = np.array(
-            [j for j, name in enumerate(model.state_names) if model.graph.elements[name].kind is Kind.I], dtype=int
-        )
-        self._inertia_parameters = np.array([model.parameter_names.index(model.state_names[j]) for j in self._inertia_states], dtype=int)
         self._corrective_speed = config.corrective_rate * (self.limits[:, 1] - self.limits[:, 0])
         self._corrective_events = tuple(f"corrective action on {c}" for c in self.components)
         self.action_meanings = ("carry on", *self._corrective_events, *(f"replace {c}" for c in self.components))
@@ -383,8 +376,7 @@ class MaintenanceCore:
         s["plant"], s["reference"] = states[:n, -1], states[n:, -1]
         s["operation"] = s["operation"] + self.config.window
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
-        gain = np.tile(self._measured_gain, (2 * n, 1))
-        gain[:n, self._inertia_states] = 1.0 / s["theta"][:, self._inertia_parameters]
+        gain = self.monitor.measurement_gain(theta)
         signals = np.empty((2 * n, states.shape[2], states.shape[1]))
         np.multiply(states.transpose(0, 2, 1), gain[:, :, None], out=signals)
         measured = self._sensor_noise(signals[:n], rngs)
