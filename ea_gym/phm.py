@@ -11,8 +11,8 @@ the same noise level (``calibrate_thresholds``), and so does the energy-balance 
 dissipators' EA (where a dissipator's fault shows); an alarm needs ``persistence`` steps in a row.
 Isolation weighs two kinds of evidence. The network's probabilities are averaged (exponentially) over
 the frames seen since the alarm; and the EA inversion, run for every hypothesis "parameter j alone has
-changed", says how well each hypothesis explains the measured EA (its fit cost; the nominal model's
-for "none"). The belief in class j is the network's share of it (plus a floor) times c_min / c_j, the
+changed", says how well each hypothesis explains the measured EA (its fit cost; the nominal model's,
+simulated and processed exactly like the candidates, for "none"). The belief in class j is the network's share of it (plus a floor) times c_min / c_j, the
 running ratio of the best fit cost to j's: a network that cannot yet tell a small fault apart does
 not outvote a hypothesis that the EA fits a hundred times better.
 """
@@ -296,7 +296,7 @@ class PHMChain:
             "estimates": np.tile(self.model.parameter_vector()[self._degradable_index], (n, 1)),
             "history_t": np.full((n, self.history_length), np.nan),
             "history": np.full((n, D, self.history_length), np.nan),
-            "fit": np.full((n, D), np.nan),
+            "fit": np.full((n, D + 1), np.nan),
             "estimated": np.zeros((n, D), dtype=bool),
             "isolated": np.zeros(n, dtype=int),
             "confident": np.zeros(n, dtype=bool),
@@ -390,16 +390,6 @@ class PHMChain:
         s["probability_average"][counted] += weight * (probabilities[counted] - s["probability_average"][counted])
         return probabilities
 
-    def _nominal_cost(self) -> np.ndarray:
-        """Fit cost of "none", (N,): the inversion's measure of mismatch, applied to the reference model
-        over the detection window."""
-        s = self.state
-        components = self.monitor._component_index
-        ea = s["ea"][:, components, -self.detect_subs :].sum(-1)
-        mismatch = np.concatenate([ea - s["ea_reference"][:, components, -self.detect_subs :].sum(-1),
-                                   s["balance"][:, -self.detect_balances :].sum(-1, keepdims=True)], axis=1)
-        return ((mismatch / self.estimator.mismatch_scale(np.concatenate([ea, mismatch[:, -1:]], axis=1))) ** 2).sum(1)
-
     def _isolate(self) -> np.ndarray:
         """The chain's belief (N, K) from the network's average and the hypotheses' fit costs; sets the suspect."""
         s = self.state
@@ -407,12 +397,11 @@ class PHMChain:
         total = s["probability_average"].sum(1, keepdims=True)
         # before the network's first frame its belief is uniform: the fits alone decide
         network = np.where(total > 0, s["probability_average"] / np.where(total > 0, total, 1.0), 1.0 / K)
-        nominal_cost = self._nominal_cost()
-        fit = np.concatenate([np.log(nominal_cost + 1e-12)[:, None], s["fit"]], axis=1)
+        fit = s["fit"]
         evidence = np.exp(np.min(fit, axis=1, initial=np.inf, where=np.isfinite(fit))[:, None] - fit)
         evidence = np.where(np.isfinite(evidence), evidence, 1.0)  # a hypothesis not yet fitted: no evidence either way
         belief = (network + self.config.network_floor) * evidence
-        believed = s["alarm"] & (np.any(np.isfinite(s["fit"]), axis=1) | (total[:, 0] > 0))
+        believed = s["alarm"] & (np.any(np.isfinite(fit[:, 1:]), axis=1) | (total[:, 0] > 0))
         diagnosis = np.where(believed[:, None], belief / belief.sum(1, keepdims=True), np.eye(K)[0])
         isolated = np.where(believed, 1 + np.argmax(diagnosis[:, 1:], axis=1), 0)
         # a new suspect not estimated at this step has stale estimates: start it afresh
@@ -430,7 +419,9 @@ class PHMChain:
 
         After an alarm every degradable parameter is estimated at every step (each as if it alone were
         faulty) until the isolation is confident of a suspect; from then on the suspect alone, and the
-        others keep their last value.
+        others keep their last value. Each starts from its nominal value (a fault is young when it is
+        detected) and follows its own estimates from window to window. The nominal model's fit, the
+        evidence for "none", is computed on the same window at every step.
         """
         s = self.state
         D = len(self.degradable)
@@ -441,23 +432,32 @@ class PHMChain:
             return s["estimates"].copy()
         # every parameter until the isolation is confident of a suspect, then the suspect alone
         chosen = np.where(s["confident"][:, None], np.arange(D) == s["isolated"][:, None] - 1, True) & ready[:, None]
-        rows, columns = np.nonzero(chosen)
+        systems = np.flatnonzero(ready)
         c = self.monitor.config.smoothing
-        signals, load = s["signals"][rows], s["load"][rows][..., c:]
+        signals, load = s["signals"][systems], s["load"][systems][..., c:]
         start = self.monitor.state_filter(signals[..., : 2 * c + 1])[..., c]
         # the measured EA is recomputed over one contiguous stretch, processed exactly as the
         # candidates' signals are: weakly identifiable parameters (a light damper) feel any mismatch
-        measured = np.concatenate([signals[..., c:], load[:, :1]], axis=1)
-        power, _ = self.monitor.powers(measured, c)
-        raw = s["raw"]
-        values, cost = self.estimator.estimate(
-            self._degradable_index[columns], start, load[:, 0], load[:, 1], self.estimator.signature(power),
-            previous=raw[rows, columns, -1],
+        power, _ = self.monitor.powers(np.concatenate([signals[..., c:], load[:, :1]], axis=1), c)
+        measured = self.estimator.signature(power)
+        nominal = self._degradable_index[np.zeros(len(systems), dtype=int)]
+        nominal_cost = self.estimator.fit_cost(
+            nominal, self.model.parameter_vector()[nominal], start, load[:, 0], load[:, 1], measured
         )
-        # running average of each hypothesis's log fit cost (the floor keeps noise-free fits finite)
-        log_cost = np.log(cost + 1e-12)
-        fit = s["fit"][rows, columns]
-        s["fit"][rows, columns] = np.where(np.isnan(fit), log_cost, fit + self.config.fit_smoothing * (log_cost - fit))
+        rows, columns = np.nonzero(chosen)
+        at = np.searchsorted(systems, rows)  # each (system, hypothesis) pair's row among the ready systems
+        raw = s["raw"]
+        # a fault is young when it is detected: a hypothesis without an estimate starts from nominal
+        previous = raw[rows, columns, -1]
+        previous = np.where(np.isnan(previous), self.model.parameter_vector()[self._degradable_index[columns]], previous)
+        values, cost = self.estimator.estimate(
+            self._degradable_index[columns], start[at], load[at, 0], load[at, 1], measured[at], previous=previous,
+        )
+        # running average of each hypothesis's log fit cost, "none" first (the floor keeps noise-free fits finite)
+        pairs = (np.concatenate([systems, rows]), np.concatenate([np.zeros(len(systems), dtype=int), columns + 1]))
+        log_cost = np.log(np.concatenate([nominal_cost, cost]) + 1e-12)
+        fit = s["fit"][pairs]
+        s["fit"][pairs] = np.where(np.isnan(fit), log_cost, fit + self.config.fit_smoothing * (log_cost - fit))
         s["estimated"] = chosen
         _push_median(raw, rows, columns, np.ascontiguousarray(values, dtype=float), s["estimates"])
         fresh = np.full((self.n, D), np.nan)

@@ -75,8 +75,11 @@ class EstimatorConfig:
         passes: passes from the full range (each narrows the grid to two steps around the best candidate).
         margin: how far beyond the safe limits the first grid reaches, as a fraction of their span.
         warm_span: half-width of the first grid around the previous estimate, fraction of the safe
-            span, when there is one (parameters change little from one window to the next).
-        warm_grid: candidates per pass from a warm start.
+            span, when there is one: parameters change little from one window to the next, and the
+            bound keeps a weakly identifiable hypothesis from leaping to explain noise or another
+            component's fault.
+        warm_grid: candidates per pass from a warm start (the previous value and one either side: the
+            parabola through their costs gives the estimate).
         warm_passes: passes from a warm start.
         median: length of the (causal) median filter over successive estimates (paper 4.4).
         balance_share: the energy-balance mismatch is relative to the dissipators' EA plus this share of
@@ -89,7 +92,7 @@ class EstimatorConfig:
     passes: int = 3
     margin: float = 0.5
     warm_span: float = 0.05
-    warm_grid: int = 5
+    warm_grid: int = 3
     warm_passes: int = 1
     median: int = 3
     balance_share: float = 0.2
@@ -155,6 +158,12 @@ class EAParameterEstimator:
         signals[:, -1] = uu[..., 0]
         power, _ = self.monitor.powers(signals, self.context, scratch=True)
         return self.signature(power).reshape(n, g, -1)
+
+    def fit_cost(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, measured: np.ndarray) -> np.ndarray:
+        """Fit cost (N,) of the model with ``values`` (N,) of the parameters ``parameter_index`` (the
+        others nominal); arguments as in ``estimate``. With nominal values: the cost of "no fault"."""
+        mismatch = self._candidate_signature(parameter_index, values[:, None], start, u, du)[:, 0] - measured
+        return ((mismatch / self.mismatch_scale(measured)) ** 2).sum(-1)
 
     def estimate(
         self,

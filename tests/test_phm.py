@@ -110,16 +110,13 @@ def test_isolation_follows_the_hypothesis_the_ea_fits_when_the_network_is_unsure
     assert chain.classes == ("none", "k", "m", "b") and chain.degradable == ("k", "m", "b")
     # the network leans to "none", then b (a small fault it cannot yet tell apart), in both systems
     s["probability_average"][:] = [0.6, 0.0, 0.0, 0.3]
-    # system 0: the k hypothesis fits the EA 100 times better than m or b; system 1: nothing fitted yet
-    s["fit"][0] = np.log([1e-6, 1e-4, 1e-4])
-    # the nominal model is off by 10 % of the reference EA in every component
-    s["ea"][:], s["ea_reference"][:] = 1.1, 1.0
-    nominal_cost = 3 * (0.1 / 1.1) ** 2  # the inversion's relative mismatch, on the reference model
-    assert chain._nominal_cost() == pytest.approx([nominal_cost] * 2, rel=1e-12)
+    # system 0: the k hypothesis fits the EA 100 times better than m or b, and 1000 times better than the
+    # nominal model ("none"); system 1: nothing fitted yet
+    s["fit"][0] = np.log([1e-3, 1e-6, 1e-4, 1e-4])
     diagnosis = chain._isolate()
     # belief in class j = (network share + floor) x c_min / c_j, normalised
     f = chain.config.network_floor
-    weights = np.array([(2 / 3 + f) * 1e-6 / nominal_cost, f, f * 1e-2, (1 / 3 + f) * 1e-2])
+    weights = np.array([(2 / 3 + f) * 1e-3, f, f * 1e-2, (1 / 3 + f) * 1e-2])
     np.testing.assert_allclose(diagnosis[0], weights / weights.sum(), rtol=1e-9)
     assert chain.classes[s["isolated"][0]] == "k" and s["confident"][0]
     # without fits, the network's belief stands (with the floor): b is the suspect, and not a confident one
@@ -186,6 +183,14 @@ def test_ea_inversion_recovers_a_constant_parameter_and_only_the_true_hypothesis
     assert values[1] == pytest.approx(92.0, abs=0.05)
     # the true hypothesis explains the EA; neither m nor b alone can (that is what isolation by fit uses)
     assert fit[1] < 0.01 * min(fit[0], fit[2])
+    # the cost of a given model, simulated and processed like the candidates: the true k explains the EA
+    # (noise-free: better than the search's best candidate); the nominal model ("no fault") does not
+    true_cost, nominal_cost = estimator.fit_cost(
+        np.array([1, 1]), np.array([92.0, 100.0]), np.repeat(start, 2, 0), np.repeat(load.value(t)[None, c:], 2, 0),
+        np.repeat(load.derivative(t)[None, c:], 2, 0), np.repeat(measured, 2, 0),
+    )
+    assert true_cost <= fit[1]
+    assert nominal_cost > 1000 * fit[1] and nominal_cost >= min(fit[0], fit[2])
 
 
 def test_end_of_life_of_a_noise_free_linear_trend_is_exact_and_inside_its_interval():
