@@ -51,9 +51,10 @@ class DetectorConfig:
 
     Attributes:
         window: span of the EA residual sums compared with the threshold (s).
-        balance_span: span of the energy-balance residual sum (s, at most the isolation frame): its
-            noise comes from the stored energies' end points and grows slower than a dissipator's
-            fault, so a longer span sees a smaller fault.
+        balance_span: span of the energy-balance residual sum (s, a whole number of steps): its noise
+            grows slower than a dissipator's fault, so a longer span sees a smaller fault (at 1 % noise
+            the threshold is about 18 % of the light damper's dissipation over 20 s, 8 % over 60 s),
+            later (the sum describes the middle of its span).
         persistence: consecutive steps above threshold that raise the alarm.
         margin: threshold = margin x the largest statistic seen in fault-free calibration runs.
         floor: smallest threshold (relative EA residual), for noise-free signals.
@@ -62,12 +63,19 @@ class DetectorConfig:
     """
 
     window: float = 5.0
-    balance_span: float = 20.0
+    balance_span: float = 60.0
     persistence: int = 3
     margin: float = 1.25
     floor: float = 1e-3
     calibration_runs: int = 8
-    calibration_duration: float = 60.0
+    calibration_duration: float = 180.0
+
+    def __post_init__(self) -> None:
+        if self.calibration_duration < max(self.window, self.balance_span):
+            raise ValueError(
+                f"detector.calibration_duration ({self.calibration_duration} s) must be at least its window "
+                f"({self.window} s) and balance_span ({self.balance_span} s)"
+            )
 
 
 @dataclass(frozen=True)
@@ -150,24 +158,21 @@ class HealthStatus:
         return np.stack([self.eol, self.eol_low, self.eol_high], axis=1) - self.t[:, None]
 
 
-def relative_residuals(
-    ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, balance_reference: np.ndarray, dissipators: np.ndarray
-) -> np.ndarray:
+def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, dissipated: np.ndarray) -> np.ndarray:
     """Detection statistics: (..., E + 1).
 
     Args:
         ea, ea_reference: real and reference EA of every element summed over the EA window (J), (..., E).
         balance: the energy-balance residual, real minus reference, summed over the balance window (J), (...).
-        balance_reference: reference EA of every element over the balance window (J), (..., E).
-        dissipators: element indices whose reference EA scales the balance: a dissipator's fault leaves
-            that share of its dissipation unaccounted for, while barely changing any element's EA.
+        dissipated: the dissipators' reference EA over the balance window (J), (...): a dissipator's
+            fault leaves that share of its dissipation unaccounted for, while barely changing any
+            element's EA.
 
     Returns:
-        (ea - ea_reference) / ea_reference per element, then balance / the dissipators' reference EA.
+        (ea - ea_reference) / ea_reference per element, then balance / dissipated.
     """
     relative = (ea - ea_reference) / np.maximum(ea_reference, 1e-300)
-    dissipated = np.maximum(balance_reference[..., dissipators].sum(-1), 1e-300)
-    return np.concatenate([relative, (balance / dissipated)[..., None]], axis=-1)
+    return np.concatenate([relative, (balance / np.maximum(dissipated, 1e-300))[..., None]], axis=-1)
 
 
 @numba.njit(cache=True)
@@ -249,11 +254,7 @@ class PHMChain:
         self.step_samples = window_samples(config.step, self.h)
         self.frame_steps = window_samples(config.frame, config.step)
         self.detect_subs = window_samples(config.detector.window, config.monitor.sub_window)
-        self.detect_balances = window_samples(config.detector.window, config.monitor.balance_window)
-        self.balance_subs = window_samples(config.detector.balance_span, config.monitor.sub_window)
-        self.balance_count = window_samples(config.detector.balance_span, config.monitor.balance_window)
-        if config.detector.balance_span > config.frame:
-            raise ValueError(f"detector.balance_span ({config.detector.balance_span} s) must not exceed the frame ({config.frame} s)")
+        self.balance_steps = window_samples(config.detector.balance_span, config.step)
         self._dissipators = self.monitor._component_index[self.monitor.dissipators]  # element indices
         self.estimate_steps = window_samples(config.estimator.window, config.step)
         self.median_length = config.estimator.median
@@ -272,7 +273,6 @@ class PHMChain:
         E, C, nx = len(self.monitor.elements), len(self.monitor.components), len(self.model.state_names)
         D = len(self.degradable)
         subs = self.frame_steps * (self.step_samples // self.monitor.n_sub)
-        balances = self.frame_steps * (self.step_samples // (self.monitor.n_sub * self.monitor.n_balance))
         # raw signals for the inversion: its window, the candidates' smoothing context before it, and
         # as much again so that the state it starts from is smoothed with samples on both sides
         signal_samples = self.estimate_steps * self.step_samples + 2 * self.monitor.config.smoothing + 1
@@ -284,7 +284,9 @@ class PHMChain:
             # the isolation frame needs only their sums: one entry per step
             "gram": np.zeros((n, C, C, self.frame_steps)),
             "cross": np.zeros((n, C, self.frame_steps)),
-            "balance": np.zeros((n, balances)),
+            # the balance statistic's sums per step over its span
+            "balance": np.zeros((n, self.balance_steps)),
+            "dissipated": np.zeros((n, self.balance_steps)),
             "noise": np.zeros((n, 2, nx, self.frame_steps)),
             "signals": np.zeros((n, nx, signal_samples)),
             "load": np.zeros((n, 2, signal_samples)),
@@ -325,7 +327,8 @@ class PHMChain:
             s[key] = _push(s[key], value)
         s["gram"] = _push(s["gram"], window.gram.sum(axis=1)[..., None])
         s["cross"] = _push(s["cross"], window.cross.sum(axis=1)[..., None])
-        s["balance"] = _push(s["balance"], window.balance)
+        s["balance"] = _push(s["balance"], window.balance.sum(-1)[:, None])
+        s["dissipated"] = _push(s["dissipated"], window.ea_reference[:, self._dissipators].sum((1, 2))[:, None])
         s["noise"] = _push(s["noise"], window.noise[..., None])
         s["signals"] = _push(s["signals"], measured[..., 1:])
         s["load"] = _push(s["load"], np.stack([load, load_rate], axis=1)[..., 1:])
@@ -363,12 +366,10 @@ class PHMChain:
         s = self.state
         statistic = relative_residuals(
             s["ea"][..., -self.detect_subs :].sum(-1), s["ea_reference"][..., -self.detect_subs :].sum(-1),
-            s["balance"][..., -self.balance_count :].sum(-1), s["ea_reference"][..., -self.balance_subs :].sum(-1),
-            self._dissipators,
+            s["balance"].sum(-1), s["dissipated"].sum(-1),
         )
-        seen = s["steps"] * (self.step_samples // self.monitor.n_sub)
-        full = np.append(np.full(statistic.shape[1] - 1, self.detect_subs), self.balance_subs)
-        return np.where(seen[:, None] >= full, statistic, 0.0)
+        full = np.append(np.full(statistic.shape[1] - 1, self.detect_subs * self.monitor.n_sub), self.balance_steps * self.step_samples)
+        return np.where((s["steps"] * self.step_samples)[:, None] >= full, statistic, 0.0)
 
     def _classify(self) -> np.ndarray:
         """The newest frame's network class probabilities (N, K); updates their running average."""
@@ -530,10 +531,10 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
         return np.moveaxis(sliding_window_view(x, span, axis=-1).sum(-1), -1, 0)
 
     # each statistic's threshold is its own maximum: the EA and balance windows need not be aligned
-    dissipators = monitor._component_index[monitor.dissipators]
-    ea_statistic = relative_residuals(sums(ea, subs), sums(ref, subs), sums(balance, subs), sums(ref, subs), dissipators)
+    dissipated = ref[:, monitor._component_index[monitor.dissipators]].sum(1)
+    ea_statistic = relative_residuals(sums(ea, subs), sums(ref, subs), sums(balance, subs), sums(dissipated, subs))
     balance_statistic = relative_residuals(
-        sums(ea, balance_subs), sums(ref, balance_subs), sums(balance, balance_subs), sums(ref, balance_subs), dissipators
+        sums(ea, balance_subs), sums(ref, balance_subs), sums(balance, balance_subs), sums(dissipated, balance_subs)
     )
     largest = np.append(np.abs(ea_statistic[..., :-1]).max(axis=(0, 1)), np.abs(balance_statistic[..., -1]).max())
     return np.maximum(d.margin * largest, d.floor)

@@ -89,7 +89,7 @@ class _FavoursK(FaultClassifier):
 @pytest.fixture(scope="module")
 def setting():
     model = spring_mass_damper()
-    config = PHMConfig(noise=0.01, detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0))
+    config = PHMConfig(noise=0.01, detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
     thresholds = calibrate_thresholds(model, config, np.random.default_rng(2))
     chain = PHMChain(model, _FavoursK(classes_of(model), "strong", 1), thresholds, config)
     scenario = load_scenario(SCENARIO)
