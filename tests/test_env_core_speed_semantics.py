@@ -129,6 +129,23 @@ def test_batched_sensor_noise_draws_what_each_system_would():
     assert all(a.random() == b.random() for a, b in zip(rngs, again))  # each generator left in the same state
 
 
+def test_compiled_noise_draws_follow_any_bit_generator_and_new_generators():
+    """Each bit generator kind gives numpy's numbers; generators replaced between calls are drawn from, not stale ones."""
+    env = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", obs_mode="sensors", noise=0.05)
+    core = env.unwrapped.core
+    clean = np.random.default_rng(7).standard_normal((3, 2, 4001))  # enough draws to reach the ziggurat's tail
+    for kind in (np.random.PCG64, np.random.MT19937, np.random.Philox, np.random.SFC64):
+        rngs = [np.random.Generator(kind(20 + i)) for i in range(3)]
+        again = [np.random.Generator(kind(20 + i)) for i in range(3)]
+        for _ in range(2):  # the second call reuses the addresses taken by the first
+            expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(3)])
+            np.testing.assert_array_equal(core._sensor_noise(clean, rngs), expected)
+        rngs[1], again[1] = np.random.Generator(kind(99)), np.random.Generator(kind(99))
+        expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(3)])
+        np.testing.assert_array_equal(core._sensor_noise(clean, rngs), expected)
+        assert all(a.random() == b.random() for a, b in zip(rngs, again))
+
+
 def test_batched_replacements_and_failures_match_single_environments():
     """Random actions replace and fail often; events, costs and state match system by system."""
     components = get_model("spring_mass_damper").safe_limits
