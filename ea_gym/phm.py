@@ -171,17 +171,6 @@ def relative_residuals(
 
 
 @numba.njit(cache=True)
-def _shift_in(buffer: np.ndarray, new: np.ndarray) -> None:
-    """Shift every row of ``buffer`` (R, T) left by k and write ``new`` (R, k) at its end."""
-    T, k = buffer.shape[1], new.shape[1]
-    for r in range(buffer.shape[0]):
-        for t in range(T - k):
-            buffer[r, t] = buffer[r, t + k]
-        for t in range(k):
-            buffer[r, T - k + t] = new[r, t]
-
-
-@numba.njit(cache=True)
 def _push_median(raw: np.ndarray, rows: np.ndarray, columns: np.ndarray, values: np.ndarray, median: np.ndarray) -> None:
     """Push ``values`` (K,) into the windows raw[rows, columns] (N, D, W) and write each window's
     ``np.nanmedian`` to median[rows, columns]: the mean of the two middle values when an even number
@@ -213,12 +202,39 @@ def _push_median(raw: np.ndarray, rows: np.ndarray, columns: np.ndarray, values:
 
 
 def _push(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """Append ``new`` along the last axis and drop as many of the oldest entries; in place (a fresh
-    array of the chain's history every step would cost page faults), and returned."""
-    k = new.shape[-1]
-    buffer = np.ascontiguousarray(buffer)  # a view of its rows is then written
-    _shift_in(buffer.reshape(-1, buffer.shape[-1]), np.ascontiguousarray(new, dtype=buffer.dtype).reshape(-1, k))
-    return buffer
+    """Append ``new`` (..., k) along the last axis and drop as many of the oldest entries; returns the buffer.
+
+    The buffer is a window on the last axis of a backing array twice its length (its ``base``, made
+    at the first push): each push slides the window on, and only when it reaches the backing
+    array's end are its entries moved back to the start. The history is then copied once per
+    buffer length's worth of pushes instead of at every push, and no array is allocated.
+    """
+    k, T = new.shape[-1], buffer.shape[-1]
+    backing = buffer.base
+    if not _is_window(buffer, backing):
+        backing = np.empty(buffer.shape[:-1] + (2 * T,), dtype=buffer.dtype)
+        backing[..., :T] = buffer
+        buffer = backing[..., :T]
+    start = (buffer.ctypes.data - backing.ctypes.data) // buffer.itemsize + k
+    if start + T > backing.shape[-1]:
+        # the entries kept lie past T - k, clear of where they go: no overlap
+        backing[..., : T - k] = buffer[..., k:]
+        start = 0
+    window = backing[..., start : start + T]
+    window[..., T - k :] = new
+    return window
+
+
+def _is_window(buffer: np.ndarray, backing: np.ndarray | None) -> bool:
+    """Whether ``buffer`` is a window on the last axis of a backing array ``_push`` made: C-contiguous, twice its length."""
+    return (
+        backing is not None
+        and backing.flags.c_contiguous
+        and backing.dtype == buffer.dtype
+        and backing.shape[:-1] == buffer.shape[:-1]
+        and backing.strides == buffer.strides
+        and backing.shape[-1] == 2 * buffer.shape[-1]
+    )
 
 
 class PHMChain:
