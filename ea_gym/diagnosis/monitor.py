@@ -262,7 +262,7 @@ def _chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sourc
     gram = np.empty((n, balances, C, C))
     cross = np.empty((n, balances, C))
     stored = np.empty(C)
-    noise = np.zeros((n, 2, nx))
+    noise = np.empty((n, 2, nx))
     for m in range(n):
         for b in range(balances):
             for s in range(b * n_balance, (b + 1) * n_balance):
@@ -276,9 +276,11 @@ def _chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sourc
                     gram[m, b, i, j] = stored[i] * stored[j]
                 cross[m, b, i] = stored[i] * residual[m, b]
         for c in range(nx):
+            error, power_sum = 0.0, 0.0  # in registers: the array entries would be reloaded at every sample
             for t in range(raw.shape[2]):
-                noise[m, 0, c] += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
-                noise[m, 1, c] += raw[m, c, t] ** 2
+                error += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
+                power_sum += raw[m, c, t] ** 2
+            noise[m, 0, c], noise[m, 1, c] = error, power_sum
     return finite, ea, residual, gram, cross, noise
 
 
