@@ -284,7 +284,6 @@ class PHMChain:
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Start over for all systems, or for those where the boolean mask is true."""
-        n = self.n if systems is None else int(np.count_nonzero(systems))  # fresh rows only for those reset
         E, C, nx = len(self.monitor.elements), len(self.monitor.components), len(self.model.state_names)
         D = len(self.degradable)
         subs = self.frame_steps * (self.step_samples // self.monitor.n_sub)
@@ -292,37 +291,41 @@ class PHMChain:
         # raw signals for the inversion: its window, the candidates' smoothing context before it, and
         # as much again so that the state it starts from is smoothed with samples on both sides
         signal_samples = self.estimate_steps * self.step_samples + 2 * self.monitor.config.smoothing + 1
-        fresh = {
-            "time": np.zeros(n),
-            "steps": np.zeros(n, dtype=int),
-            "ea": np.zeros((n, E, subs)),
-            "ea_reference": np.zeros((n, E, subs)),
+        # each entry's shape after the system axis and its initial value (its dtype: int, bool or float)
+        initial = {
+            "time": ((), 0.0),
+            "steps": ((), 0),
+            "ea": ((E, subs), 0.0),
+            "ea_reference": ((E, subs), 0.0),
             # the isolation frame needs only their sums: one entry per step
-            "gram": np.zeros((n, C, C, self.frame_steps)),
-            "cross": np.zeros((n, C, self.frame_steps)),
-            "balance": np.zeros((n, balances)),
-            "noise": np.zeros((n, 2, nx, self.frame_steps)),
-            "signals": np.zeros((n, nx, signal_samples)),
-            "load": np.zeros((n, 2, signal_samples)),
-            "above": np.zeros(n, dtype=int),
-            "alarm": np.zeros(n, dtype=bool),
-            "detection_time": np.full(n, np.nan),
-            "probability_average": np.zeros((n, len(self.classes))),
-            "raw": np.full((n, D, self.median_length), np.nan),
-            "estimates": np.tile(self.model.parameter_vector()[self._degradable_index], (n, 1)),
-            "history_t": np.full((n, self.history_length), np.nan),
-            "history": np.full((n, D, self.history_length), np.nan),
-            "fit": np.full((n, D + 1), np.nan),
-            "estimated": np.zeros((n, D), dtype=bool),
-            "isolated": np.zeros(n, dtype=int),
-            "confident": np.zeros(n, dtype=bool),
+            "gram": ((C, C, self.frame_steps), 0.0),
+            "cross": ((C, self.frame_steps), 0.0),
+            "balance": ((balances,), 0.0),
+            "noise": ((2, nx, self.frame_steps), 0.0),
+            "signals": ((nx, signal_samples), 0.0),
+            "load": ((2, signal_samples), 0.0),
+            "above": ((), 0),
+            "alarm": ((), False),
+            "detection_time": ((), np.nan),
+            "probability_average": ((len(self.classes),), 0.0),
+            "raw": ((D, self.median_length), np.nan),
+            "estimates": ((D,), self.model.parameter_vector()[self._degradable_index]),
+            "history_t": ((self.history_length,), np.nan),
+            "history": ((D, self.history_length), np.nan),
+            "fit": ((D + 1,), np.nan),
+            "estimated": ((D,), False),
+            "isolated": ((), 0),
+            "confident": ((), False),
         }
         if systems is None:
-            self.state = fresh
+            self.state = {key: np.full((self.n, *shape), value) for key, (shape, value) in initial.items()}
             self.monitor.reset()
             return
-        for key, value in fresh.items():
-            self.state[key][systems] = value
+        # the rows are written in place, with no fresh array of their size (a good share of the
+        # systems is reset at every step under random actions)
+        rows = np.flatnonzero(systems)
+        for key, (_, value) in initial.items():
+            self.state[key][rows] = value
         self.monitor.reset(systems)
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> HealthStatus:
