@@ -27,7 +27,7 @@ from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.env.costs import CostModel
-from ea_gym.loads import multisine_on_grid
+from ea_gym.loads import multisine_rotations, rotated_multisine
 from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
 from ea_gym.threads import single_threaded_blas
@@ -233,6 +233,7 @@ class MaintenanceCore:
                 "load_amplitude": np.zeros(n),
                 "load_frequency": np.zeros((n, LOAD_COMPONENTS)),
                 "load_phase": np.zeros((n, LOAD_COMPONENTS)),
+                "load_rotation": np.zeros((n, 3, LOAD_COMPONENTS)),  # of the frequencies, kept for the episode
             }
         s = self._state
         for key in ("plant", "reference", "clock", "operation", "since_maintenance", "corrective_direction"):
@@ -258,13 +259,14 @@ class MaintenanceCore:
             s["load_amplitude"][i] = std * math.sqrt(2.0 / LOAD_COMPONENTS)
             s["load_frequency"][i] = model.excitation_bandwidth - rng.uniform(0.0, model.excitation_bandwidth, LOAD_COMPONENTS)
             s["load_phase"][i] = rng.uniform(0.0, 2.0 * math.pi, LOAD_COMPONENTS)
+        s["load_rotation"][mask] = multisine_rotations(s["load_frequency"][mask], self.h)
 
     def _load(self, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each system's load and its derivative over one window from its time ``start`` (N,), on the
         sample grid: random-phase multisines, (N, samples + 1)."""
         s = self._state
         t = start[:, None] + self._window_grid
-        waves, slopes = multisine_on_grid(t, self.h, s["load_frequency"], s["load_phase"])
+        waves, slopes = rotated_multisine(t, s["load_phase"], s["load_rotation"])
         amplitude = s["load_amplitude"][:, None]
         return s["load_mean"][:, None] + amplitude * waves, amplitude * slopes
 
