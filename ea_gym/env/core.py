@@ -20,7 +20,7 @@ from numba.core import cgutils, types
 from numba.extending import intrinsic
 from numba.np.random.distributions import random_standard_normal
 
-from ea_gym.bondgraph.simulation import simulate_batch
+from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
@@ -414,13 +414,12 @@ class MaintenanceCore:
         theta = np.concatenate([s["theta"], np.broadcast_to(self.nominal, s["theta"].shape)])
         loads = np.concatenate([u, u])[..., None]
         rates = np.concatenate([du, du])[..., None]
-        states = simulate_batch(self.model.state_space, self.h, loads, rates, theta, np.concatenate([s["plant"], s["reference"]]))
-        s["plant"], s["reference"] = states[:n, -1], states[n:, -1]
-        s["operation"] = s["operation"] + self.config.window
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
         gain = self.monitor.measurement_gain(theta)
-        signals = np.empty((2 * n, states.shape[2], states.shape[1]))
-        np.multiply(states.transpose(0, 2, 1), gain[:, :, None], out=signals)
+        x0 = np.concatenate([s["plant"], s["reference"]])
+        signals, last = simulate_measured(self.model.state_space, self.h, loads, rates, theta, x0, gain)
+        s["plant"], s["reference"] = last[:n], last[n:]
+        s["operation"] = s["operation"] + self.config.window
         measured = self._sensor_noise(signals[:n], rngs)
         expected = signals[n:]
         if self.chain is not None:
