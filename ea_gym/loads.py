@@ -45,7 +45,62 @@ def _multisine(
 _ROTATION_SPAN = 128
 
 
+#: Systems ``rotated_multisine`` takes side by side: their terms' rotation states stay in the first-level cache.
+_SYSTEMS_BLOCK = 64
+
+
 @numba.njit(cache=True)
+def multisine_rotations(frequencies: np.ndarray, step: float) -> np.ndarray:
+    """What ``multisine_on_grid`` rotates each term by from one sample to the next, (N, 3, C): the
+    angular frequencies 2 pi f (rad/s) of the frequencies f (N, C) in Hz, and the sine and cosine of
+    the angle 2 pi f ``step`` (``step`` in s)."""
+    n_sys, components = frequencies.shape
+    rotation = np.empty((n_sys, 3, components))
+    for n in range(n_sys):
+        for i in range(components):
+            omega = 2.0 * math.pi * frequencies[n, i]
+            rotation[n, 0, i] = omega
+            rotation[n, 1, i], rotation[n, 2, i] = math.sin(omega * step), math.cos(omega * step)
+    return rotation
+
+
+@numba.njit(cache=True)
+def rotated_multisine(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``multisine_on_grid`` from the terms' ``multisine_rotations`` (N, 3, C), which a caller may keep
+    while the frequencies and the sample period stay: t (N, T) in s, phases (N, C) in rad."""
+    n_sys, n_samples = t.shape
+    components = phases.shape[1]
+    total = np.empty((n_sys, n_samples))
+    slope = np.empty((n_sys, n_samples))
+    B = min(_SYSTEMS_BLOCK, n_sys)
+    # component-major copies, system innermost (the SIMD axis); each sample's sums over the
+    # components are made in registers, in the components' order
+    omega, sin_step, cos_step, s, c = np.empty((5, components, B))
+    wave, rate = np.empty(B), np.empty(B)
+    for n0 in range(0, n_sys, B):
+        lanes = min(B, n_sys - n0)
+        for i in range(components):
+            for b in range(lanes):
+                omega[i, b], sin_step[i, b], cos_step[i, b] = rotation[n0 + b, 0, i], rotation[n0 + b, 1, i], rotation[n0 + b, 2, i]
+        for k in range(n_samples):
+            if k % _ROTATION_SPAN == 0:
+                for i in range(components):
+                    for b in range(lanes):
+                        angle = t[n0 + b, k] * omega[i, b] + phases[n0 + b, i]
+                        s[i, b], c[i, b] = math.sin(angle), math.cos(angle)
+            wave[:] = 0.0
+            rate[:] = 0.0
+            for i in range(components):
+                for b in range(lanes):
+                    wave[b] += s[i, b]
+                    rate[b] += omega[i, b] * c[i, b]
+                    s[i, b], c[i, b] = s[i, b] * cos_step[i, b] + c[i, b] * sin_step[i, b], c[i, b] * cos_step[i, b] - s[i, b] * sin_step[i, b]
+            for b in range(lanes):
+                total[n0 + b, k] = wave[b]
+                slope[n0 + b, k] = rate[b]
+    return total, slope
+
+
 def multisine_on_grid(t: np.ndarray, step: float, frequencies: np.ndarray, phases: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """sum_i sin(2 pi f_i t + phi_i) and its time derivative (1/s) for N systems on uniform time grids.
 
@@ -59,27 +114,7 @@ def multisine_on_grid(t: np.ndarray, step: float, frequencies: np.ndarray, phase
     Returns:
         the sums and their derivatives, both (N, T).
     """
-    n_sys, n_samples = t.shape
-    # laid out (T, N), so that the inner loops run over systems and vectorize
-    total = np.zeros((n_samples, n_sys))
-    slope = np.zeros((n_samples, n_sys))
-    omega, sin_step, cos_step = np.empty(n_sys), np.empty(n_sys), np.empty(n_sys)
-    s, c = np.empty(n_sys), np.empty(n_sys)
-    for i in range(frequencies.shape[1]):
-        for n in range(n_sys):
-            omega[n] = 2.0 * math.pi * frequencies[n, i]
-            sin_step[n], cos_step[n] = math.sin(omega[n] * step), math.cos(omega[n] * step)
-        for k in range(n_samples):
-            if k % _ROTATION_SPAN == 0:
-                for n in range(n_sys):
-                    angle = t[n, k] * omega[n] + phases[n, i]
-                    s[n], c[n] = math.sin(angle), math.cos(angle)
-            total_k, slope_k = total[k], slope[k]
-            for n in range(n_sys):
-                total_k[n] += s[n]
-                slope_k[n] += omega[n] * c[n]
-                s[n], c[n] = s[n] * cos_step[n] + c[n] * sin_step[n], c[n] * cos_step[n] - s[n] * sin_step[n]
-    return np.ascontiguousarray(total.T), np.ascontiguousarray(slope.T)
+    return rotated_multisine(t, phases, multisine_rotations(frequencies, step))
 
 
 @dataclass(frozen=True)

@@ -176,17 +176,6 @@ def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.nda
 
 
 @numba.njit(cache=True)
-def _shift_in(buffer: np.ndarray, new: np.ndarray) -> None:
-    """Shift every row of ``buffer`` (R, T) left by k and write ``new`` (R, k) at its end."""
-    T, k = buffer.shape[1], new.shape[1]
-    for r in range(buffer.shape[0]):
-        for t in range(T - k):
-            buffer[r, t] = buffer[r, t + k]
-        for t in range(k):
-            buffer[r, T - k + t] = new[r, t]
-
-
-@numba.njit(cache=True)
 def _push_median(raw: np.ndarray, rows: np.ndarray, columns: np.ndarray, values: np.ndarray, median: np.ndarray) -> None:
     """Push ``values`` (K,) into the windows raw[rows, columns] (N, D, W) and write each window's
     ``np.nanmedian`` to median[rows, columns]: the mean of the two middle values when an even number
@@ -218,12 +207,39 @@ def _push_median(raw: np.ndarray, rows: np.ndarray, columns: np.ndarray, values:
 
 
 def _push(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
-    """Append ``new`` along the last axis and drop as many of the oldest entries; in place (a fresh
-    array of the chain's history every step would cost page faults), and returned."""
-    k = new.shape[-1]
-    buffer = np.ascontiguousarray(buffer)  # a view of its rows is then written
-    _shift_in(buffer.reshape(-1, buffer.shape[-1]), np.ascontiguousarray(new, dtype=buffer.dtype).reshape(-1, k))
-    return buffer
+    """Append ``new`` (..., k) along the last axis and drop as many of the oldest entries; returns the buffer.
+
+    The buffer is a window on the last axis of a backing array twice its length (its ``base``, made
+    at the first push): each push slides the window on, and only when it reaches the backing
+    array's end are its entries moved back to the start. The history is then copied once per
+    buffer length's worth of pushes instead of at every push, and no array is allocated.
+    """
+    k, T = new.shape[-1], buffer.shape[-1]
+    backing = buffer.base
+    if not _is_window(buffer, backing):
+        backing = np.empty(buffer.shape[:-1] + (2 * T,), dtype=buffer.dtype)
+        backing[..., :T] = buffer
+        buffer = backing[..., :T]
+    start = (buffer.ctypes.data - backing.ctypes.data) // buffer.itemsize + k
+    if start + T > backing.shape[-1]:
+        # the entries kept lie past T - k, clear of where they go: no overlap
+        backing[..., : T - k] = buffer[..., k:]
+        start = 0
+    window = backing[..., start : start + T]
+    window[..., T - k :] = new
+    return window
+
+
+def _is_window(buffer: np.ndarray, backing: np.ndarray | None) -> bool:
+    """Whether ``buffer`` is a window on the last axis of a backing array ``_push`` made: C-contiguous, twice its length."""
+    return (
+        backing is not None
+        and backing.flags.c_contiguous
+        and backing.dtype == buffer.dtype
+        and backing.shape[:-1] == buffer.shape[:-1]
+        and backing.strides == buffer.strides
+        and backing.shape[-1] == 2 * buffer.shape[-1]
+    )
 
 
 class PHMChain:
@@ -269,46 +285,49 @@ class PHMChain:
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Start over for all systems, or for those where the boolean mask is true."""
-        n = self.n if systems is None else int(np.count_nonzero(systems))  # fresh rows only for those reset
         E, C, nx = len(self.monitor.elements), len(self.monitor.components), len(self.model.state_names)
         D = len(self.degradable)
         subs = self.frame_steps * (self.step_samples // self.monitor.n_sub)
         # raw signals for the inversion: its window, the candidates' smoothing context before it, and
         # as much again so that the state it starts from is smoothed with samples on both sides
         signal_samples = self.estimate_steps * self.step_samples + 2 * self.monitor.config.smoothing + 1
-        fresh = {
-            "time": np.zeros(n),
-            "steps": np.zeros(n, dtype=int),
-            "ea": np.zeros((n, E, subs)),
-            "ea_reference": np.zeros((n, E, subs)),
+        # each entry's shape after the system axis and its initial value (its dtype: int, bool or float)
+        initial = {
+            "time": ((), 0.0),
+            "steps": ((), 0),
+            "ea": ((E, subs), 0.0),
+            "ea_reference": ((E, subs), 0.0),
             # the isolation frame needs only their sums: one entry per step
-            "gram": np.zeros((n, C, C, self.frame_steps)),
-            "cross": np.zeros((n, C, self.frame_steps)),
+            "gram": ((C, C, self.frame_steps), 0.0),
+            "cross": ((C, self.frame_steps), 0.0),
             # the balance statistic's sums per step over its span
-            "balance": np.zeros((n, self.balance_steps)),
-            "dissipated": np.zeros((n, self.balance_steps)),
-            "noise": np.zeros((n, 2, nx, self.frame_steps)),
-            "signals": np.zeros((n, nx, signal_samples)),
-            "load": np.zeros((n, 2, signal_samples)),
-            "above": np.zeros(n, dtype=int),
-            "alarm": np.zeros(n, dtype=bool),
-            "detection_time": np.full(n, np.nan),
-            "probability_average": np.zeros((n, len(self.classes))),
-            "raw": np.full((n, D, self.median_length), np.nan),
-            "estimates": np.tile(self.model.parameter_vector()[self._degradable_index], (n, 1)),
-            "history_t": np.full((n, self.history_length), np.nan),
-            "history": np.full((n, D, self.history_length), np.nan),
-            "fit": np.full((n, D + 1), np.nan),
-            "estimated": np.zeros((n, D), dtype=bool),
-            "isolated": np.zeros(n, dtype=int),
-            "confident": np.zeros(n, dtype=bool),
+            "balance": ((self.balance_steps,), 0.0),
+            "dissipated": ((self.balance_steps,), 0.0),
+            "noise": ((2, nx, self.frame_steps), 0.0),
+            "signals": ((nx, signal_samples), 0.0),
+            "load": ((2, signal_samples), 0.0),
+            "above": ((), 0),
+            "alarm": ((), False),
+            "detection_time": ((), np.nan),
+            "probability_average": ((len(self.classes),), 0.0),
+            "raw": ((D, self.median_length), np.nan),
+            "estimates": ((D,), self.model.parameter_vector()[self._degradable_index]),
+            "history_t": ((self.history_length,), np.nan),
+            "history": ((D, self.history_length), np.nan),
+            "fit": ((D + 1,), np.nan),
+            "estimated": ((D,), False),
+            "isolated": ((), 0),
+            "confident": ((), False),
         }
         if systems is None:
-            self.state = fresh
+            self.state = {key: np.full((self.n, *shape), value) for key, (shape, value) in initial.items()}
             self.monitor.reset()
             return
-        for key, value in fresh.items():
-            self.state[key][systems] = value
+        # the rows are written in place, with no fresh array of their size (a good share of the
+        # systems is reset at every step under random actions)
+        rows = np.flatnonzero(systems)
+        for key, (_, value) in initial.items():
+            self.state[key][rows] = value
         self.monitor.reset(systems)
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> HealthStatus:

@@ -25,7 +25,7 @@ import numba
 import numpy as np
 from scipy.stats import norm
 
-from ea_gym.bondgraph.simulation import simulate_batch
+from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 
@@ -151,10 +151,9 @@ class EAParameterEstimator:
         to_signal = self.monitor.measurement_gain(theta)
         x0 = np.repeat(start, g, 0) / to_signal
         uu = np.repeat(u, g, 0)[..., None]
-        states = simulate_batch(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0)
         # the measured signals, then the load: (n g, nx + 1, T)
-        signals = self.monitor._buffer("candidates", (n * g, states.shape[2] + 1, states.shape[1]))
-        np.multiply(states.transpose(0, 2, 1), to_signal[:, :, None], out=signals[:, :-1])
+        signals = self.monitor._buffer("candidates", (n * g, space.n_states + 1, u.shape[1]))
+        simulate_measured(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0, to_signal, out=signals[:, :-1])
         signals[:, -1] = uu[..., 0]
         power, _ = self.monitor.powers(signals, self.context, scratch=True)
         return self.signature(power).reshape(n, g, -1)

@@ -30,7 +30,7 @@ What it measures
        time (instance attributes / module globals, restored afterwards) with timers that accumulate
        wall time per call path; a stage's time is its inclusive time minus that of the wrapped calls
        inside it, so the rows add up to the measured ``env.step`` time. Rows: load signal, plant +
-       reference simulation (``ea_gym.env.core.simulate_batch``), measurement gains, sensor noise,
+       reference simulation (``ea_gym.env.core.simulate_measured``), measurement gains, sensor noise,
        EA monitor (``Monitor.update``), detection (``PHMChain._statistic``), isolation network
        (``_classify``: frame, features, torch), isolation belief (``_isolate``), EA inversion
        (``_estimate``), EoL extrapolation
@@ -287,7 +287,7 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
         (core, "_idle_outputs", "_idle_outputs"),
         (core, "_true_rul", "_true_rul"),
         (core.wear, "advance", "wear.advance"),
-        (core_module, "simulate_batch", "simulate_batch"),
+        (core_module, "simulate_measured", "simulate_measured"),
         (core, "_sensor_noise", "_sensor_noise"),
         (monitor, "measurement_gain", "measurement_gain"),
         (monitor, "update", "monitor.update"),
@@ -308,7 +308,7 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
             (chain.classifier, "predict_proba", "classifier.predict_proba"),
             (chain.estimator, "estimate", "estimator.estimate"),
             (chain.estimator, "_candidate_signature", "estimator._candidate_signature"),
-            (prognosis_module, "simulate_batch", "simulate_batch (candidates)"),
+            (prognosis_module, "simulate_measured", "simulate_measured (candidates)"),
         ]
     saved: list[tuple[Any, str, bool, Any]] = []
     try:
@@ -337,7 +337,7 @@ def stage_rows(p: Profiler, steps: int, step_total: float) -> list[tuple[str, fl
     observe = p.inclusive(*C, "_observe")
     rows = [
         ("load signal (MaintenanceCore._load)", p.inclusive(*O, "_load")),
-        ("plant + reference simulation (simulate_batch)", p.inclusive(*O, "simulate_batch")),
+        ("plant + reference simulation (simulate_measured)", p.inclusive(*O, "simulate_measured")),
         ("measurement gains and products (_operate rest)", p.self_time(*O) + p.inclusive(*O, "measurement_gain")),
         ("measurement noise (MaintenanceCore._sensor_noise)", p.inclusive(*O, "_sensor_noise")),
         ("EA monitor (Monitor.update)", p.inclusive(*H, "monitor.update")),

@@ -12,6 +12,7 @@ from ea_gym.bondgraph.simulation import (
     hermite_coefficients,
     propagate,
     simulate_batch,
+    simulate_measured,
     unique_rows,
 )
 from ea_gym.degradation import WearConfig
@@ -62,7 +63,30 @@ def test_fused_kernel_handles_several_inputs_and_shared_matrices():
     u, du = rng.standard_normal((2, n, samples, nu))
     x0 = rng.standard_normal((n, nx))
     expected = propagate(Discretization(Phi[index][:, None], Gamma[index][:, None]), hermite_coefficients(u, du, h), x0)
-    np.testing.assert_array_equal(_simulate_hermite(Phi, Gamma, index, u, du, h, x0), expected)
+    signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
+    gain = rng.uniform(0.5, 2.0, (n, nx))
+    _simulate_hermite(Phi, Gamma, index, u, du, h, x0, gain, signals, last)
+    np.testing.assert_array_equal(signals, expected.transpose(0, 2, 1) * gain[:, :, None])
+    np.testing.assert_array_equal(last, expected[:, -1])
+
+
+def test_measured_simulation_is_the_states_times_the_gains_in_the_sensors_layout():
+    model = get_model("spring_mass_damper")
+    space = model.state_space
+    rng = np.random.default_rng(4)
+    n, samples = 5, 40
+    theta = model.parameter_vector()[None] * rng.uniform(0.8, 1.2, (n, len(space.parameter_names)))
+    u, du = rng.standard_normal((2, n, samples, 1))
+    x0 = rng.standard_normal((n, space.n_states))
+    gain = rng.uniform(0.5, 2.0, (n, space.n_states))
+    states = simulate_batch(space, 0.01, u, du, theta, x0)
+    signals, last = simulate_measured(space, 0.01, u, du, theta, x0, gain)
+    np.testing.assert_array_equal(signals, states.transpose(0, 2, 1) * gain[:, :, None])
+    np.testing.assert_array_equal(last, states[:, -1])
+    wider = np.full((n, space.n_states + 1, samples), np.nan)  # written in place, the last channel left alone
+    simulate_measured(space, 0.01, u, du, theta, x0, gain, out=wider[:, :-1])
+    np.testing.assert_array_equal(wider[:, :-1], signals)
+    assert np.isnan(wider[:, -1]).all()
 
 
 def test_unique_rows_maps_every_row_to_an_identical_one():
@@ -127,6 +151,23 @@ def test_batched_sensor_noise_draws_what_each_system_would():
     expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(4)])
     np.testing.assert_array_equal(core._sensor_noise(clean, rngs), expected)
     assert all(a.random() == b.random() for a, b in zip(rngs, again))  # each generator left in the same state
+
+
+def test_compiled_noise_draws_follow_any_bit_generator_and_new_generators():
+    """Each bit generator kind gives numpy's numbers; generators replaced between calls are drawn from, not stale ones."""
+    env = gym.make_vec(ENV_ID, num_envs=3, vectorization_mode="vector_entry_point", obs_mode="sensors", noise=0.05)
+    core = env.unwrapped.core
+    clean = np.random.default_rng(7).standard_normal((3, 2, 4001))  # enough draws to reach the ziggurat's tail
+    for kind in (np.random.PCG64, np.random.MT19937, np.random.Philox, np.random.SFC64):
+        rngs = [np.random.Generator(kind(20 + i)) for i in range(3)]
+        again = [np.random.Generator(kind(20 + i)) for i in range(3)]
+        for _ in range(2):  # the second call reuses the addresses taken by the first
+            expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(3)])
+            np.testing.assert_array_equal(core._sensor_noise(clean, rngs), expected)
+        rngs[1], again[1] = np.random.Generator(kind(99)), np.random.Generator(kind(99))
+        expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(3)])
+        np.testing.assert_array_equal(core._sensor_noise(clean, rngs), expected)
+        assert all(a.random() == b.random() for a, b in zip(rngs, again))
 
 
 def test_batched_replacements_and_failures_match_single_environments():

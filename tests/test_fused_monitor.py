@@ -7,7 +7,7 @@ import pytest
 
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import rlc_circuit, spring_mass_damper
-from ea_gym.phm import _push_median
+from ea_gym.phm import _push, _push_median
 from ea_gym.prognosis import EAParameterEstimator
 
 
@@ -131,3 +131,21 @@ def test_pushed_median_equals_numpy_nanmedian():
         _push_median(raw, rows, columns, values, median)
         np.testing.assert_array_equal(raw, expected_raw)
         np.testing.assert_array_equal(median, expected)
+
+
+def test_pushed_history_equals_concatenating_and_dropping():
+    """The sliding window gives the history a fresh array would, through its moves back to the start,
+    writes into it between pushes (a chain reset) and a buffer that is not yet a window."""
+    rng = np.random.default_rng(8)
+    for length, k in ((7, 1), (7, 3), (6, 6), (403, 100)):
+        buffer = rng.standard_normal((4, 2, length))
+        expected = buffer.copy()
+        for step in range(3 * length):
+            new = rng.standard_normal((4, 2, k))
+            expected = np.concatenate([expected, new], axis=-1)[..., k:]
+            buffer = _push(buffer, new)
+            np.testing.assert_array_equal(buffer, expected)
+            if step % 5 == 2:
+                buffer[1] = expected[1] = rng.standard_normal((2, length))
+        buffer = _push(buffer.copy(), new)  # a plain array again
+        np.testing.assert_array_equal(buffer, np.concatenate([expected, new], axis=-1)[..., k:])

