@@ -113,6 +113,13 @@ class EAParameterEstimator:
         self.context = monitor.config.smoothing
         self._components = np.array([monitor.elements.index(c) for c in monitor.components])
         self._sources = np.array([monitor.elements.index(u) for u in self.model.state_space.input_names])
+        # per parameter (NaN for one without safe limits): the first grid and the safe span
+        limits = [self.model.safe_limits.get(name) for name in self.model.parameter_names]
+        self._grids = np.array([
+            np.full(config.grid, np.nan) if pair is None else self.candidate_grid(name)
+            for name, pair in zip(self.model.parameter_names, limits)
+        ])
+        self._spans = np.array([np.nan if pair is None else pair[1] - pair[0] for pair in limits])
 
     def signature(self, power: np.ndarray) -> np.ndarray:
         """What the inversion matches over a window, from every element's power (..., E, L + 1): (..., C + 1).
@@ -187,11 +194,10 @@ class EAParameterEstimator:
             between the best candidate's signature and the measured one. Comparing the costs of the
             hypotheses "parameter j alone has changed" tells which one the EA supports.
         """
-        names = self.model.parameter_names
-        grids = np.stack([self.candidate_grid(names[j]) for j in parameter_index])
+        grids = self._grids[parameter_index]
         warm = np.zeros(len(parameter_index), dtype=bool) if previous is None else np.isfinite(previous)
         if np.any(warm):
-            spans = np.array([np.subtract(*self.model.safe_limits[names[j]][::-1]) for j in parameter_index[warm]])
+            spans = self._spans[parameter_index[warm]]
             offsets = np.linspace(-1.0, 1.0, self.config.warm_grid) * self.config.warm_span
             warm_grids = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
         # warm and cold systems are searched apart, so that a system's estimate never depends on the batch
