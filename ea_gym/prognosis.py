@@ -168,8 +168,12 @@ class EAParameterEstimator:
     def fit_cost(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, measured: np.ndarray) -> np.ndarray:
         """Fit cost (N,) of the model with ``values`` (N,) of the parameters ``parameter_index`` (the
         others nominal); arguments as in ``estimate``. With nominal values: the cost of "no fault"."""
-        mismatch = self._candidate_signature(parameter_index, values[:, None], start, u, du)[:, 0] - measured
-        return ((mismatch / self.mismatch_scale(measured)) ** 2).sum(-1)
+        return self.cost(self._candidate_signature(parameter_index, values[:, None], start, u, du), measured)[:, 0]
+
+    def cost(self, signature: np.ndarray, measured: np.ndarray) -> np.ndarray:
+        """Fit cost of candidate signatures (N, G, C + 1) against the measured ones (N, C + 1), (N, G): the
+        sum of the squared relative mismatches (``mismatch_scale``)."""
+        return (((signature - measured[:, None, :]) / self.mismatch_scale(measured)[:, None, :]) ** 2).sum(-1)
 
     def estimate(
         self,
@@ -215,12 +219,10 @@ class EAParameterEstimator:
 
         Returns the vertex of the parabola through the last pass's best candidate and its neighbours
         (the cost is smooth in the parameter near its minimum), and the best candidate's cost."""
-        scale = self.mismatch_scale(measured)[:, None, :]
         rows = np.arange(len(grids))
         size = grids.shape[1]
         for _ in range(passes):
-            mismatch = self._candidate_signature(parameter_index, grids, start, u, du) - measured[:, None, :]
-            cost = ((mismatch / scale) ** 2).sum(-1)
+            cost = self.cost(self._candidate_signature(parameter_index, grids, start, u, du), measured)
             step = grids[:, 1] - grids[:, 0]
             best = np.argmin(cost, axis=1)
             centre = grids[rows, best]
