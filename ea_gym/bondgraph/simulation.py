@@ -81,9 +81,20 @@ def _solve(a: np.ndarray, b: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
+def _pade_polynomial(A2: np.ndarray, A4: np.ndarray, A6: np.ndarray, c: np.ndarray, T: np.ndarray, out: np.ndarray) -> None:
+    """out = A6 (c6 A6 + c5 A4 + c4 A2) + c3 A6 + c2 A4 + c1 A2 + c0 I: the even or odd half of the
+    [13/13] Pade approximant's coefficients (``_PADE13[0::2]`` or ``[1::2]``); T is a workspace."""
+    T[:] = c[6] * A6 + c[5] * A4 + c[4] * A2
+    _matmul(A6, T, out)
+    out += c[3] * A6 + c[2] * A4 + c[1] * A2
+    for i in range(out.shape[0]):
+        out[i, i] += c[0]
+
+
+@numba.njit(cache=True)
 def _expm(Z: np.ndarray) -> np.ndarray:
     """e^Z for each of the (M, n, n) matrices: scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
-    b = _PADE13
+    odd, even = _PADE13[1::2], _PADE13[0::2]
     n = Z.shape[1]
     out = np.empty_like(Z)
     # one workspace for all matrices: allocations would cost more than the arithmetic
@@ -99,18 +110,10 @@ def _expm(Z: np.ndarray) -> np.ndarray:
         _matmul(A2, A2, A4)
         _matmul(A4, A2, A6)
         # U = A [A6 (b13 A6 + b11 A4 + b9 A2) + b7 A6 + b5 A4 + b3 A2 + b1 I]
-        T[:] = b[13] * A6 + b[11] * A4 + b[9] * A2
-        _matmul(A6, T, W)
-        W += b[7] * A6 + b[5] * A4 + b[3] * A2
-        for i in range(n):
-            W[i, i] += b[1]
+        _pade_polynomial(A2, A4, A6, odd, T, W)
         _matmul(A, W, U)
         # V = A6 (b12 A6 + b10 A4 + b8 A2) + b6 A6 + b4 A4 + b2 A2 + b0 I
-        T[:] = b[12] * A6 + b[10] * A4 + b[8] * A2
-        _matmul(A6, T, V)
-        V += b[6] * A6 + b[4] * A4 + b[2] * A2
-        for i in range(n):
-            V[i, i] += b[0]
+        _pade_polynomial(A2, A4, A6, even, T, V)
         # r = (V - U)^-1 (V + U), then squared s times
         T[:] = V - U
         W[:] = V + U
