@@ -12,9 +12,10 @@ dissipators' EA (where a dissipator's fault shows); an alarm needs ``persistence
 Isolation weighs two kinds of evidence. The network's probabilities are averaged (exponentially) over
 the frames seen since the alarm; and the EA inversion, run for every hypothesis "parameter j alone has
 changed", says how well each hypothesis explains the measured EA (its fit cost; the nominal model's,
-simulated and processed exactly like the candidates, for "none"). The belief in class j is the network's share of it (plus a floor) times c_min / c_j, the
-running ratio of the best fit cost to j's: a network that cannot yet tell a small fault apart does
-not outvote a hypothesis that the EA fits a hundred times better.
+simulated and processed exactly like the candidates, for "none"). The belief in class j is the
+network's share of it (plus a floor) times c_min / c_j, the running ratio of the best fit cost to
+j's: a network that cannot yet tell a small fault apart does not outvote a hypothesis that the EA
+fits a hundred times better.
 """
 
 from __future__ import annotations
@@ -267,6 +268,7 @@ class PHMChain:
         self.thresholds = np.asarray(thresholds, dtype=float)
         self.degradable = self.classes[1:]
         self._degradable_index = np.array([model.parameter_names.index(p) for p in self.degradable])
+        self._nominal = model.parameter_vector()[self._degradable_index]  # of the degradable parameters
         self.step_samples = window_samples(config.step, self.h)
         self.frame_steps = window_samples(config.frame, config.step)
         self.detect_subs = window_samples(config.detector.window, config.monitor.sub_window)
@@ -311,7 +313,7 @@ class PHMChain:
             "detection_time": ((), np.nan),
             "probability_average": ((len(self.classes),), 0.0),
             "raw": ((D, self.median_length), np.nan),
-            "estimates": ((D,), self.model.parameter_vector()[self._degradable_index]),
+            "estimates": ((D,), self._nominal),
             "history_t": ((self.history_length,), np.nan),
             "history": ((D, self.history_length), np.nan),
             "fit": ((D + 1,), np.nan),
@@ -460,16 +462,16 @@ class PHMChain:
         # candidates' signals are: weakly identifiable parameters (a light damper) feel any mismatch
         power, _ = self.monitor.powers(np.concatenate([signals[..., c:], load[:, :1]], axis=1), c)
         measured = self.estimator.signature(power)
-        nominal = self._degradable_index[np.zeros(len(systems), dtype=int)]
+        # "none": any one degradable parameter at its nominal value, the others nominal too
         nominal_cost = self.estimator.fit_cost(
-            nominal, self.model.parameter_vector()[nominal], start, load[:, 0], load[:, 1], measured
+            np.full(len(systems), self._degradable_index[0]), np.full(len(systems), self._nominal[0]), start, load[:, 0], load[:, 1], measured
         )
         rows, columns = np.nonzero(chosen)
         at = np.searchsorted(systems, rows)  # each (system, hypothesis) pair's row among the ready systems
         raw = s["raw"]
         # a fault is young when it is detected: a hypothesis without an estimate starts from nominal
         previous = raw[rows, columns, -1]
-        previous = np.where(np.isnan(previous), self.model.parameter_vector()[self._degradable_index[columns]], previous)
+        previous = np.where(np.isnan(previous), self._nominal[columns], previous)
         values, cost = self.estimator.estimate(
             self._degradable_index[columns], start[at], load[at, 0], load[at, 1], measured[at], previous=previous,
         )
