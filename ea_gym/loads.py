@@ -40,7 +40,7 @@ def _multisine(
     return np.sin(angle) @ amplitudes
 
 
-#: Samples between direct evaluations in ``multisine_on_grid``: the rotation's round-off grows by about
+#: Samples between direct evaluations in ``rotated_multisine``: the rotation's round-off grows by about
 #: 1e-16 per sample, so it stays below 1e-13 of each component's amplitude.
 _ROTATION_SPAN = 128
 
@@ -51,7 +51,7 @@ _SYSTEMS_BLOCK = 64
 
 @numba.njit(cache=True)
 def multisine_rotations(frequencies: np.ndarray, step: float) -> np.ndarray:
-    """What ``multisine_on_grid`` rotates each term by from one sample to the next, (N, 3, C): the
+    """What ``rotated_multisine`` rotates each term by from one sample to the next, (N, 3, C): the
     angular frequencies 2 pi f (rad/s) of the frequencies f (N, C) in Hz, and the sine and cosine of
     the angle 2 pi f ``step`` (``step`` in s)."""
     n_sys, components = frequencies.shape
@@ -66,8 +66,20 @@ def multisine_rotations(frequencies: np.ndarray, step: float) -> np.ndarray:
 
 @numba.njit(cache=True)
 def rotated_multisine(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``multisine_on_grid`` from the terms' ``multisine_rotations`` (N, 3, C), which a caller may keep
-    while the frequencies and the sample period stay: t (N, T) in s, phases (N, C) in rad."""
+    """sum_i sin(2 pi f_i t + phi_i) and its time derivative (1/s) for N systems on uniform time grids.
+
+    Every ``_ROTATION_SPAN`` samples each term is evaluated directly; in between it is rotated by the
+    angle 2 pi f_i step, four multiplications in place of a sine and a cosine.
+
+    Args:
+        t: times (N, T) in s, row n spaced by the step the rotations were made for.
+        phases: phi (N, C) in rad.
+        rotation: the terms' ``multisine_rotations`` (N, 3, C), which a caller may keep while the
+            frequencies and the sample period stay.
+
+    Returns:
+        the sums and their derivatives, both (N, T).
+    """
     n_sys, n_samples = t.shape
     components = phases.shape[1]
     total = np.empty((n_sys, n_samples))
@@ -99,22 +111,6 @@ def rotated_multisine(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray) -
                 total[n0 + b, k] = wave[b]
                 slope[n0 + b, k] = rate[b]
     return total, slope
-
-
-def multisine_on_grid(t: np.ndarray, step: float, frequencies: np.ndarray, phases: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """sum_i sin(2 pi f_i t + phi_i) and its time derivative (1/s) for N systems on uniform time grids.
-
-    Every ``_ROTATION_SPAN`` samples each term is evaluated directly; in between it is rotated by the
-    angle 2 pi f_i step, four multiplications in place of a sine and a cosine.
-
-    Args:
-        t: times (N, T) in s, row n spaced by ``step`` s.
-        frequencies: f (N, C) in Hz; phases: phi (N, C) in rad.
-
-    Returns:
-        the sums and their derivatives, both (N, T).
-    """
-    return rotated_multisine(t, phases, multisine_rotations(frequencies, step))
 
 
 @dataclass(frozen=True)
