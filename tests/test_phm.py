@@ -10,7 +10,7 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.metrics import alpha_lambda
 from ea_gym.models import spring_mass_damper
-from ea_gym.phm import PHMConfig, build_chain, measure, run_scenario
+from ea_gym.phm import PHMConfig, balance_chi_square, build_chain, measure, run_scenario
 from ea_gym.plant import run_model
 from ea_gym.prognosis import (
     EAParameterEstimator,
@@ -122,6 +122,28 @@ def test_isolation_follows_the_hypothesis_the_ea_fits_when_the_network_is_unsure
     # without fits, the network's belief stands (with the floor): b is the suspect, and not a confident one
     np.testing.assert_allclose(diagnosis[1], (np.array([2 / 3, 0.0, 0.0, 1 / 3]) + f) / (1 + 4 * f), rtol=1e-9)
     assert chain.classes[s["isolated"][1]] == "b" and not s["confident"][1]
+
+
+def test_balance_chi_square_is_the_nested_regressions_rise_in_residual_and_singles_out_the_faulty_column():
+    rng = np.random.default_rng(1)
+    windows = 400
+    energies = rng.standard_normal((windows, 3))  # E_i per window, components 0, 1, 2
+    residual = 0.05 * energies[:, 1] + 1e-3 * rng.standard_normal(windows)  # component 1's coefficient is 5 % off
+    gram, cross, square = energies.T @ energies, energies.T @ residual, residual @ residual
+    columns = np.array([1, 0, 2, -1])  # four hypotheses; the last one's parameter is no component's
+    chi2 = balance_chi_square(gram[None], cross[None], np.array([square]), np.array([windows]), columns)[0]
+
+    def rss(design):
+        return np.sum((residual - design @ np.linalg.lstsq(design, residual, rcond=None)[0]) ** 2) if design.shape[1] else square
+
+    full = rss(energies)
+    expected = [(rss(energies[:, :0]) - full) / (full / (windows - 3))] + [
+        (rss(energies[:, [c]]) - full) / (full / (windows - 3)) for c in columns[:3]
+    ]
+    np.testing.assert_allclose(chi2[:4], expected, rtol=1e-6)
+    # the right column leaves only noise (a chi-square of 2 degrees of freedom); the others miss the fault
+    assert chi2[1] < 20 and min(chi2[0], chi2[2], chi2[3]) > 1e4
+    assert chi2[4] == pytest.approx(chi2.min())  # no column: no evidence either way
 
 
 def test_monitor_residuals_vanish_without_fault_and_noise():
