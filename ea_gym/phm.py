@@ -381,6 +381,19 @@ class PHMChain:
             self.state[key][rows] = value
         self.monitor.reset(systems)
 
+    def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
+        """Log maintenance that moved degradable parameter ``parameters[k]`` (index into ``degradable``) of
+        system ``systems[k]`` (distinct systems) by ``changes[k]`` (its SI unit) before the next update.
+
+        The estimates so far are shifted by the change, as if it had always been there: the trend the
+        prognosis extrapolates stays the wear's, now from the adjusted value, instead of reading the
+        correction as a reversal of the wear.
+        """
+        s = self.state
+        for key in ("raw", "history"):
+            s[key][systems, parameters] += np.asarray(changes, dtype=float)[:, None]
+        s["estimates"][systems, parameters] += changes
+
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> HealthStatus:
         """Process one step.
 

@@ -134,6 +134,19 @@ def test_corrective_action_moves_the_parameter_toward_nominal_and_past_it():
     np.testing.assert_allclose(values, [100.4, 100.8, 101.2])
 
 
+def test_corrective_actions_are_logged_in_the_chain():
+    wear = {"k": WearConfig(direction=-1, rate=(0.0, 0.0), arrival=(0.0, 0.0))}
+    env = gym.make("ea_gym/SpringMassDamper-v0", wear=wear, corrective_rate=0.02)
+    env.reset(seed=0)
+    chain = env.unwrapped.core.chain
+    k = chain.degradable.index("k")
+    for _ in range(3):
+        env.step(1 + env.unwrapped.maintainable_components.index("k"))
+    # no alarm yet, so no estimate of its own: the chain believes nominal plus what maintenance did
+    assert not chain.state["alarm"][0]
+    assert chain.state["estimates"][0, k] == pytest.approx(101.2)
+
+
 def test_failure_terminates_or_forces_a_replacement():
     wear = {"k": WearConfig(direction=-1, rate=(0.2, 0.2), arrival=(0.0, 0.0))}
     env = gym.make("ea_gym/SpringMassDamper-v0", obs_mode="sensors", wear=wear)

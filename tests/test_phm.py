@@ -146,6 +146,29 @@ def test_balance_chi_square_is_the_nested_regressions_rise_in_residual_and_singl
     assert chi2[4] == pytest.approx(chi2.min())  # no column: no evidence either way
 
 
+def test_a_logged_adjustment_moves_the_end_of_life_by_the_change_over_the_wear_rate():
+    chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
+    s = chain.state
+    m = chain.degradable.index("m")
+    # both systems: m isolated with confidence, its estimates falling 0.01 kg/s from 9.5 kg for 20 s
+    times = np.arange(20.0)
+    s["time"][:] = 20.0
+    s["confident"][:], s["isolated"][:] = True, 1 + m
+    s["history_t"][:, -20:] = times
+    s["history"][:, m, -20:] = 9.5 - 0.01 * times
+    s["estimates"][:, m] = s["history"][:, m, -1]
+    _, before = chain._prognose(s["estimates"])
+    # a corrective action on system 0 put 0.05 kg back: the wear has 5 s more to go
+    chain.record_adjustment(np.array([0]), np.array([m]), np.array([0.05]))
+    estimates = s["estimates"].copy()
+    _, after = chain._prognose(estimates)
+    lower = MODEL.safe_limits["m"][0]
+    assert before[1, 0] == pytest.approx(19.0 + (9.5 - 0.19 - lower) / 0.01, rel=1e-6)  # the trend's crossing
+    assert after[0, 0] - before[0, 0] == pytest.approx(0.05 / 0.01, rel=1e-6)
+    np.testing.assert_array_equal(after[1], before[1])  # the other system's log is its own
+    assert estimates[0, m] == pytest.approx(9.31 + 0.05) and estimates[1, m] == pytest.approx(9.31)
+
+
 def test_monitor_residuals_vanish_without_fault_and_noise():
     t = np.arange(3001) * 0.01
     scenario = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=30.0)

@@ -301,7 +301,10 @@ class MaintenanceCore:
             heading = np.sign(self.nominal[j[new]] - s["theta"][rows[new], j[new]])
             direction[rows[new]] = 0.0
             direction[rows[new], d[new]] = np.where(heading == 0, 1.0, heading)
-            s["theta"][rows, j] += direction[rows, d] * self._corrective_speed[d] * dt
+            change = direction[rows, d] * self._corrective_speed[d] * dt
+            s["theta"][rows, j] += change
+            if self.chain is not None:  # the maintenance log: the chain's prognosis knows what was done
+                self.chain.record_adjustment(rows, d, change)
             costs["corrective"][rows] += c.corrective
             for i, component in zip(rows, d):
                 events[i].append(self._corrective_events[component])
