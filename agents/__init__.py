@@ -5,9 +5,9 @@ deterministic=True) -> (actions, state)``, so rules and learned agents are evalu
 """
 
 from agents.evaluation import COST_ITEMS, EpisodeStats, evaluate, mean_ci95, tune
-from agents.policies import ActionMap, Oracle, Periodic, RulePolicy, RulThreshold, RunToFailure
+from agents.policies import ActionMap, CorrectiveBand, Oracle, Periodic, RulePolicy, RulThreshold, RunToFailure
 
 __all__ = [
-    "ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle",
+    "ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand",
     "EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_ITEMS",
 ]

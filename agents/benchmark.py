@@ -19,10 +19,14 @@ Policies (environment ``ea_gym/SpringMassDamper-v0``, ``continue_after_failure=T
 =================  ===========  ===================================================================
 name               obs_mode     policy
 =================  ===========  ===================================================================
-``oracle``         oracle       ``Oracle``: replace the truly degrading component when its true RUL
-                                falls below the threshold (tuned): the reference lower bound
+``oracle``         oracle       ``Oracle``: replace the truly degrading component, or apply a corrective
+                                action on it, when its true RUL falls below the threshold (action and
+                                threshold tuned): the reference lower bound
 ``ppo``            its own      a PPO agent loaded with ``agents.training.load_policy``
-``rul_threshold``  phm          ``RulThreshold`` on the PHM chain's diagnosis and RUL (threshold tuned)
+``rul_threshold``  phm          ``RulThreshold`` on the PHM chain's diagnosis and RUL (action and
+                                threshold tuned)
+``corrective_band`` phm         ``CorrectiveBand``: corrective actions on the suspect while its estimate
+                                is beyond a band toward its limit (band tuned)
 ``periodic``       sensors      ``Periodic`` block replacement of every component (period tuned)
 ``run_to_failure`` sensors      ``RunToFailure``: never maintain
 =================  ===========  ===================================================================
@@ -50,19 +54,24 @@ from typing import Any
 import numpy as np
 
 from agents.evaluation import COST_ITEMS, EpisodeStats, evaluate, mean_ci95, tune
-from agents.policies import ActionMap, Oracle, Periodic, RulThreshold, RunToFailure
+from agents.policies import ActionMap, CorrectiveBand, Oracle, Periodic, RulThreshold, RunToFailure
 
 __all__ = [
-    "ENV_ID", "PERIODS", "THRESHOLDS", "DEFAULT_GRIDS", "EVALUATION_SEED_BASE", "EVALUATION_SEED_STRIDE",
+    "ENV_ID", "PERIODS", "THRESHOLDS", "BANDS", "ACTIONS", "DEFAULT_GRIDS", "EVALUATION_SEED_BASE", "EVALUATION_SEED_STRIDE",
     "env_factory", "evaluation_seeds", "tuning_seeds", "paired", "fmt_ci", "fmt_diff", "record_timeline",
     "plot_cost_distribution", "plot_timelines", "markdown", "run_benchmark",
 ]
 
 ENV_ID = "ea_gym/SpringMassDamper-v0"
-#: Periodic's grid of periods (s) and the RUL thresholds (s) of RulThreshold and Oracle
+#: Periodic's grid of periods (s), the RUL thresholds (s) of RulThreshold and Oracle, CorrectiveBand's bands
 PERIODS = (20, 40, 60, 80, 120, 160, 240)
 THRESHOLDS = (2, 5, 10, 15, 20, 30, 45, 60)
-DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {"oracle": THRESHOLDS, "rul_threshold": THRESHOLDS, "periodic": PERIODS}
+BANDS = (0.3, 0.5, 0.7, 0.85)
+DEFAULT_GRIDS: dict[str, tuple[float, ...]] = {
+    "oracle": THRESHOLDS, "rul_threshold": THRESHOLDS, "corrective_band": BANDS, "periodic": PERIODS,
+}
+#: the actions RulThreshold and Oracle are tuned over, each with the whole threshold grid
+ACTIONS = ("replace", "corrective")
 EVALUATION_SEED_BASE = 100_000
 EVALUATION_SEED_STRIDE = 10_000  # evaluation seeds of benchmark seed s: BASE + s * STRIDE + i, i < episodes
 
@@ -70,6 +79,7 @@ EVALUATION_SEED_STRIDE = 10_000  # evaluation seeds of benchmark seed s: BASE + 
 RULES = {
     "oracle": ("Oracle (true state)", "oracle", "threshold_s"),
     "rul_threshold": ("RulThreshold (PHM)", "phm", "threshold_s"),
+    "corrective_band": ("CorrectiveBand (PHM)", "phm", "band"),
     "periodic": ("Periodic", "sensors", "period_s"),
     "run_to_failure": ("RunToFailure", "sensors", None),
 }
@@ -415,7 +425,8 @@ def _param(row: Mapping[str, Any]) -> str:
     if row.get("parameter") is None:
         return "-"
     unit = " s" if str(row.get("parameter_name", "")).endswith("_s") else ""
-    return f"{row['parameter_name'].removesuffix('_s')} = {row['parameter']:g}{unit}"
+    action = f"{row['action']}, " if row.get("action") else ""
+    return f"{action}{row['parameter_name'].removesuffix('_s')} = {row['parameter']:g}{unit}"
 
 
 def markdown(result: Mapping[str, Any]) -> str:
@@ -485,10 +496,12 @@ def markdown(result: Mapping[str, Any]) -> str:
         lines += ["No trained PPO agent was evaluated, so the learned column is empty.", ""]
     lines += ["## Tuning (tuning seeds)", ""]
     for name, tuning in result["tuning"].items():
-        lines.append(f"{name} (obs_mode {tuning['obs_mode']}), {tuning['parameter_name']}: best {tuning['best']:g}")
+        action = f" ({tuning['action']})" if tuning.get("action") else ""
+        lines.append(f"{name} (obs_mode {tuning['obs_mode']}), {tuning['parameter_name']}: best {tuning['best']:g}{action}")
         lines += ["", "| value | cost [95 % CI] | failures | availability | maintenance actions |", "|---|---|---|---|---|"]
         for r in tuning["table"]:
-            lines.append(f"| {r['parameter']:g} | {fmt_ci(r)} | {r['failures']:.2f} | {r['availability']:.3f} | {r['maintenance_actions']:.1f} |")
+            value = f"{r['action']}, {r['parameter']:g}" if r.get("action") else f"{r['parameter']:g}"
+            lines.append(f"| {value} | {fmt_ci(r)} | {r['failures']:.2f} | {r['availability']:.3f} | {r['maintenance_actions']:.1f} |")
         lines.append("")
     lines += [
         "## Figures",
@@ -573,8 +586,9 @@ def run_benchmark(
         progress: progress bars and one line per stage.
         ppo_policies: more trained agents, name -> directory (e.g. ``{"ppo_sensors": ..., "ppo_oracle": ...}``),
             for the value-of-information comparison; missing ones are skipped with a note.
-        grids: tuning grids by policy (``"oracle"``, ``"rul_threshold"``: thresholds in s; ``"periodic"``:
-            periods in s); missing keys take ``DEFAULT_GRIDS``.
+        grids: tuning grids by policy (``"oracle"``, ``"rul_threshold"``: thresholds in s, tried with each
+            of ``ACTIONS``; ``"corrective_band"``: bands; ``"periodic"``: periods in s); missing keys take
+            ``DEFAULT_GRIDS``.
         env_kwargs: more keyword arguments of the environment (e.g. ``{"horizon": 100}``), for every
             policy, the tuning and the timelines.
         timeline_seed: the episode of the timelines (default the first evaluation seed).
@@ -646,21 +660,31 @@ def run_benchmark(
     say(f"tuning on seeds {tuning.start}..{tuning.stop - 1}")
     tuned: dict[str, Any] = {}
     tables: dict[str, Any] = {}
-    builders = {"oracle": lambda v: Oracle(actions, v), "rul_threshold": lambda v: RulThreshold(actions, v),
-                "periodic": lambda v: Periodic(actions, v)}
-    for name in ("oracle", "rul_threshold", "periodic"):
+    builders = {"oracle": lambda v, a: Oracle(actions, v, action=a), "rul_threshold": lambda v, a: RulThreshold(actions, v, action=a),
+                "corrective_band": lambda v, a: CorrectiveBand(actions, v), "periodic": lambda v, a: Periodic(actions, v)}
+    for name in DEFAULT_GRIDS:
         label, mode, parameter_name = RULES[name]
         grid = [_parameter(v) for v in grids[name]]
-        best, table = timed(f"tune {name}", lambda name=name, grid=grid, mode=mode: tune(builders[name], grid, make(mode), tuning, progress))
-        tuned[name] = best
-        tables[name] = {"obs_mode": mode, "parameter_name": parameter_name, "grid": grid, "best": best, "table": table}
+        candidates = []  # (mean cost, value, action) of the best value per action
+        rows = []
+        for action in ACTIONS if name in ("oracle", "rul_threshold") else (None,):
+            best, table = timed(
+                f"tune {name}" + (f" ({action})" if action else ""),
+                lambda name=name, grid=grid, mode=mode, action=action: tune(lambda v: builders[name](v, action), grid, make(mode), tuning, progress),
+            )
+            candidates.append((min(r["mean_cost"] for r in table), best, action))
+            rows += [{"action": action, **r} if action else r for r in table]
+        _, best, action = min(candidates, key=lambda c: c[0])  # ties go to the earlier action
+        tuned[name] = (best, action)
+        tables[name] = {"obs_mode": mode, "parameter_name": parameter_name, "grid": grid, "best": best, "action": action, "table": rows}
 
     # the policies
     plan: dict[str, dict[str, Any]] = {}  # name -> policy, obs_mode, label, parameter, parameter_name, extra
-    for name in ("oracle", "rul_threshold", "periodic", "run_to_failure"):
+    for name in RULES:
         label, mode, parameter_name = RULES[name]
-        policy = builders[name](tuned[name]) if name in tuned else RunToFailure(actions)
-        plan[name] = {"policy": policy, "obs_mode": mode, "label": label, "parameter": tuned.get(name),
+        value, action = tuned.get(name, (None, None))
+        policy = builders[name](value, action) if name in tuned else RunToFailure(actions)
+        plan[name] = {"policy": policy, "obs_mode": mode, "label": label, "parameter": value, "action": action,
                       "parameter_name": parameter_name, "kind": "rule"}
     skipped: dict[str, str] = {}
     learned = {"ppo": None if ppo is None else Path(ppo), **extra}
@@ -686,7 +710,7 @@ def run_benchmark(
     say(f"evaluating on seeds {evaluation.start}..{evaluation.stop - 1}")
     stats: dict[str, EpisodeStats] = {}
     timelines: dict[str, dict[str, Any]] = {}
-    order = ["oracle", "ppo", "rul_threshold", "periodic", "run_to_failure", *extra]
+    order = ["oracle", "ppo", "rul_threshold", "corrective_band", "periodic", "run_to_failure", *extra]
     order = [n for n in order if n in plan]
     for name in order:
         entry = plan[name]
@@ -725,6 +749,7 @@ def run_benchmark(
             "cost_ratio_to_oracle": _json_number(ratio),
             "vs_oracle": _json_ready(paired(s, stats["oracle"])),
             "parameter": entry["parameter"],
+            "action": entry.get("action"),
             "parameter_name": entry["parameter_name"],
             **row,
             **entry.get("extra", {}),
@@ -735,7 +760,8 @@ def run_benchmark(
         rows[name]["rank"] = rank
 
     # value of information: per obs_mode the rule and the learned agents; paired gains between regimes
-    rule_of = {"sensors": "periodic", "phm": "rul_threshold", "oracle": "oracle"}
+    phm_rule = min(("rul_threshold", "corrective_band"), key=lambda n: stats[n].mean_cost)
+    rule_of = {"sensors": "periodic", "phm": phm_rule, "oracle": "oracle"}
     by_mode = {mode: {"rule": rule_of[mode], "ppo": [n for n in order if plan[n]["kind"] == "ppo" and plan[n]["obs_mode"] == mode]}
                for mode in ("sensors", "phm", "oracle")}
     gains = []

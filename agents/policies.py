@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle"]
+__all__ = ["ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand"]
 
 
 @dataclass(frozen=True)
@@ -44,12 +44,15 @@ class ActionMap:
         components: ``env.unwrapped.maintainable_components``.
         diagnosis_classes: ``env.unwrapped.diagnosis_classes``: "none", then components.
         obs_mode: the environment's observation mode ("phm", "sensors", "oracle"), None if unknown.
+        nominal_positions: each component's nominal value as a position in its safe range (0 the lower
+            limit, 1 the upper: the coordinate of ``parameter_estimate``), None if unknown.
     """
 
     action_meanings: tuple[str, ...]
     components: tuple[str, ...]
     diagnosis_classes: tuple[str, ...]
     obs_mode: str | None = None
+    nominal_positions: tuple[float, ...] | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "action_meanings", tuple(self.action_meanings))
@@ -65,6 +68,13 @@ class ActionMap:
         unknown = [c for c in self.diagnosis_classes[1:] if c not in self.components]
         if unknown:
             raise ValueError(f"diagnosis classes {unknown} are not maintainable components {self.components}")
+        if self.nominal_positions is not None:
+            positions = tuple(map(float, self.nominal_positions))
+            if len(positions) != len(self.components) or not all(0.0 < p < 1.0 for p in positions):
+                raise ValueError(
+                    f"nominal_positions must hold one position strictly inside (0, 1) per component {self.components}, got {positions}"
+                )
+            object.__setattr__(self, "nominal_positions", positions)
 
     def _index(self, meaning: str) -> int:
         try:
@@ -87,28 +97,36 @@ class ActionMap:
             return env
         base = getattr(env, "unwrapped", env)
         names = ("action_meanings", "maintainable_components", "diagnosis_classes")
+        optional = ("config", "nominal_parameters", "safe_limits")
         if all(hasattr(base, name) for name in names):
             values = [getattr(base, name) for name in names]
-            config = getattr(base, "config", None)
+            config, nominal, limits = (getattr(base, name, None) for name in optional)
         elif hasattr(env, "get_attr"):  # vectorised environments: ask the first one
             try:
                 values = [_first_attr(env, name) for name in names]
             except Exception as error:  # re-raised with the reason
                 raise TypeError(f"cannot read {names} from {type(env).__name__}: {error}") from error
-            try:
-                config = _first_attr(env, "config")
-            except Exception:  # the mode is optional
-                config = None
+            config, nominal, limits = (_optional_attr(env, name) for name in optional)
         else:
             raise TypeError(
                 f"need a BondGraphMaintenanceEnv (or a wrapper / vector env of one) or an ActionMap, got {type(env).__name__}"
             )
-        return cls(*values, obs_mode=getattr(config, "obs_mode", None))
+        positions = None
+        if nominal is not None and limits is not None:
+            positions = tuple((nominal[c] - limits[c][0]) / (limits[c][1] - limits[c][0]) for c in values[1])
+        return cls(*values, obs_mode=getattr(config, "obs_mode", None), nominal_positions=positions)
 
 
 def _first_attr(env: Any, name: str) -> Any:
     values = env.get_attr(name)
     return values[0]
+
+
+def _optional_attr(env: Any, name: str) -> Any:
+    try:
+        return _first_attr(env, name)
+    except Exception:  # optional: older or foreign environments lack it
+        return None
 
 
 def _need(observation: Any, keys: Sequence[str], who: str, hint: str = "") -> tuple[dict[str, np.ndarray], bool]:
@@ -347,3 +365,67 @@ class Oracle(RulThreshold):
     def _check_mode(self, mode: str | None) -> None:
         if mode is not None and mode != "oracle":
             raise ValueError(f"Oracle reads the true faulty component and RUL: make the env with obs_mode='oracle', not {mode!r}")
+
+
+class CorrectiveBand(RulePolicy):
+    """Condition-based corrective maintenance on the parameter estimate: while the suspect's estimated
+    parameter has gone more than ``band`` of the way from its nominal value to the safe limit on its
+    side, apply a corrective action on it (one step, which moves it back toward nominal); otherwise
+    carry on. It never replaces: the corrective actions hold a wearing component inside a band.
+
+    The suspect is the fault class the diagnosis believes most among the fault classes, when its share
+    of their belief is at least ``share`` (with three fault classes, 0.4 acts on a leaning the chain's
+    own confidence gate, 0.75, would still withhold: a corrective step on the wrong component costs
+    one unit, a failure four hundred). ``parameter_estimate`` is each component's position in its safe
+    range; the band is measured from the nominal position (``ActionMap.nominal_positions``), so an
+    estimate of 0.9 is 60 % of the way up for a nominal at 0.75.
+
+    Needs the keys ``diagnosis``, ``parameter_estimate`` and ``maintenance_in_progress``: obs_mode
+    ``"phm"`` (estimated) or ``"oracle"`` (true).
+
+    Args:
+        env: the environment (or an ActionMap with ``nominal_positions``). "sensors" is refused.
+        band: fraction of the way from nominal to the limit, in (0, 1).
+        share: the suspect's least share of the fault classes' belief, in (0, 1].
+    """
+
+    needs = ("maintenance_in_progress", "diagnosis", "parameter_estimate")
+    hint = " (make the env with obs_mode='phm' or 'oracle')"
+
+    def __init__(self, env: Any, band: float, share: float = 0.4):
+        if not (isinstance(band, (int, float)) and 0 < band < 1):
+            raise ValueError(f"band must be a fraction of the way to the limit in (0, 1), got {band!r}")
+        if not (isinstance(share, (int, float)) and 0 < share <= 1):
+            raise ValueError(f"share must be in (0, 1], got {share!r}")
+        self.actions = ActionMap.from_env(env)
+        if self.actions.obs_mode == "sensors":
+            raise ValueError("CorrectiveBand reads the diagnosis and the parameter estimates, which obs_mode 'sensors' does not give")
+        if self.actions.nominal_positions is None:
+            raise ValueError("CorrectiveBand needs the components' nominal positions: pass the env or an ActionMap with nominal_positions")
+        self.band, self.share = float(band), float(share)
+        classes = self.actions.diagnosis_classes[1:]
+        index = [self.actions.components.index(c) for c in classes]
+        self._corrective = np.array([self.actions.corrective(c) for c in classes], dtype=np.int64)
+        self._estimate_column = np.array(index)
+        self._nominal = np.array(self.actions.nominal_positions)[index]
+
+    def _act(self, obs, n, state, starts):
+        diagnosis, estimate = obs["diagnosis"], obs["parameter_estimate"]
+        if diagnosis.shape[1] != len(self._corrective) + 1:
+            raise ValueError(
+                f"observation key 'diagnosis' has {diagnosis.shape[1]} classes, expected {self.actions.diagnosis_classes}"
+            )
+        faults = diagnosis[:, 1:]
+        suspect = np.argmax(faults, axis=1)
+        rows = np.arange(n)
+        share = faults[rows, suspect] / np.maximum(faults.sum(axis=1), 1e-12)
+        position = estimate[rows, self._estimate_column[suspect]]
+        nominal = self._nominal[suspect]
+        # the way covered toward the limit on the estimate's side of nominal
+        way = np.where(position < nominal, (nominal - position) / nominal, (position - nominal) / (1.0 - nominal))
+        down = obs["maintenance_in_progress"][:, 0] > 0.5
+        act = ~down & (faults.sum(axis=1) > 0) & (share >= self.share) & (way > self.band)
+        return np.where(act, self._corrective[suspect], 0), None
+
+    def __repr__(self) -> str:
+        return f"{type(self).__name__}(band={self.band:g}, share={self.share:g})"

@@ -199,10 +199,10 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--checkpoint-every", type=_positive_int, default=50_000, help="steps between checkpoints (default 50000)")
     train.add_argument("--eval-episodes", type=_positive_int, default=32, help="validation episodes per evaluation (default 32)")
     train.add_argument("--resume", metavar="CHECKPOINT", default=None, help="continue from a checkpoint .zip (or a model.zip)")
-    train.add_argument("--teacher", choices=["rul_threshold", "oracle", "periodic"], default=None,
+    train.add_argument("--teacher", choices=["rul_threshold", "corrective_band", "oracle", "periodic"], default=None,
                        help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
     train.add_argument("--teacher-parameter", type=float, default=None,
-                       help="the teacher's RUL threshold or period in s (default: agents.training.TEACHERS)")
+                       help="the teacher's RUL threshold or period in s, or its band (default: agents.training.TEACHERS)")
     train.add_argument("--teacher-steps", type=_positive_int, default=100_000, help="environment steps the teacher runs (default 100000)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     train.set_defaults(run=_train)

@@ -7,12 +7,13 @@ import numpy as np
 import pytest
 
 import ea_gym  # noqa: F401 - registers the environments
-from agents import ActionMap, EpisodeStats, Oracle, Periodic, RulThreshold, RunToFailure, evaluate, mean_ci95, tune
+from agents import ActionMap, CorrectiveBand, EpisodeStats, Oracle, Periodic, RulThreshold, RunToFailure, evaluate, mean_ci95, tune
 
 COMPONENTS = ("k", "m", "b")
 CLASSES = ("none", *COMPONENTS)
 MEANINGS = ("carry on", *(f"corrective action on {c}" for c in COMPONENTS), *(f"replace {c}" for c in COMPONENTS))
 ACTIONS = ActionMap(MEANINGS, COMPONENTS, CLASSES)
+NOMINAL_POSITIONS = (0.75, 0.5, 0.5)  # k = 100 in (85, 105), m = 10 in (9, 11), b = 0.5 in (0.4, 0.6)
 REPLACE = {c: 4 + i for i, c in enumerate(COMPONENTS)}
 CORRECT = {c: 1 + i for i, c in enumerate(COMPONENTS)}
 
@@ -50,7 +51,7 @@ def test_action_map_matches_the_environment():
     env = gym.make("ea_gym/SpringMassDamper-v0", obs_mode="oracle")
     amap = ActionMap.from_env(env)
     assert amap.action_meanings == MEANINGS and amap.components == COMPONENTS and amap.diagnosis_classes == CLASSES
-    assert amap.obs_mode == "oracle"
+    assert amap.obs_mode == "oracle" and amap.nominal_positions == NOMINAL_POSITIONS
     assert [amap.replace(c) for c in COMPONENTS] == [4, 5, 6] and [amap.corrective(c) for c in COMPONENTS] == [1, 2, 3]
     with pytest.raises(ValueError, match="replace x"):
         amap.replace("x")
@@ -87,6 +88,37 @@ def test_rul_threshold_replaces_the_diagnosed_component_below_the_threshold(cls)
     assert act(corrective, obs("b", rul_low=30.0)) == 0
     eager = cls(ACTIONS, threshold=math.inf)
     assert act(eager, obs("k", rul_low=1000.0)) == REPLACE["k"] and act(eager, obs()) == 0
+
+
+def test_corrective_band_corrects_the_suspect_beyond_its_band_toward_either_limit():
+    policy = CorrectiveBand(ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS), band=0.5)
+
+    def suspect(component, position, share_of_rest=0.02, down=0.0):
+        o = obs(component, down=down)
+        o["diagnosis"][1:] = share_of_rest
+        o["diagnosis"][CLASSES.index(component)] = 0.5
+        o["parameter_estimate"][COMPONENTS.index(component)] = position
+        return o
+
+    assert act(policy, suspect("b", 0.2)) == CORRECT["b"]  # 60 % of the way down from 0.5
+    assert act(policy, suspect("b", 0.8)) == CORRECT["b"]  # 60 % of the way up
+    assert act(policy, suspect("b", 0.3)) == 0  # 40 %: inside the band
+    # k's nominal sits at 0.75 of its range: 0.9 is 60 % of the way up, 0.45 only 40 % of the way down
+    assert act(policy, suspect("k", 0.9)) == CORRECT["k"]
+    assert act(policy, suspect("k", 0.45)) == 0
+    assert act(policy, suspect("m", 0.1)) == CORRECT["m"]
+    # a suspect with less than 0.4 of the fault classes' belief, the machine down, or no fault: carry on
+    assert act(policy, suspect("b", 0.1, share_of_rest=0.4)) == 0
+    assert act(policy, suspect("b", 0.1, down=1.0)) == 0
+    assert act(policy, obs("none")) == 0
+    strict = CorrectiveBand(ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS), 0.5, share=0.95)
+    assert act(strict, suspect("b", 0.1)) == 0  # its share, 0.5 / 0.54 = 0.93, is below 0.95
+    with pytest.raises(ValueError, match="sensors"):
+        CorrectiveBand(ActionMap(MEANINGS, COMPONENTS, CLASSES, "sensors", NOMINAL_POSITIONS), 0.5)
+    with pytest.raises(ValueError, match="nominal positions"):
+        CorrectiveBand(ACTIONS, 0.5)
+    with pytest.raises(ValueError, match="band"):
+        CorrectiveBand(ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS), 1.0)
 
 
 def test_batched_observations_give_one_action_per_env():
@@ -223,7 +255,7 @@ def test_policies_run_under_sb3_evaluate_policy_on_a_vec_env():
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     venv = DummyVecEnv([_oracle_env, _oracle_env])
-    assert ActionMap.from_env(venv) == ActionMap(MEANINGS, COMPONENTS, CLASSES, "oracle")
+    assert ActionMap.from_env(venv) == ActionMap(MEANINGS, COMPONENTS, CLASSES, "oracle", NOMINAL_POSITIONS)
     for policy in (RunToFailure(venv), Periodic(venv, 5.0), Oracle(venv, 10.0)):
         rewards, lengths = evaluate_policy(policy, venv, n_eval_episodes=2, return_episode_rewards=True, warn=False)
         assert lengths == [20, 20] and all(r <= 0 for r in rewards)

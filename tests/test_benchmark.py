@@ -10,9 +10,9 @@ from agents.benchmark import evaluation_seeds, run_benchmark, tuning_seeds
 from ea_gym.cli import main
 
 PNG = b"\x89PNG\r\n\x1a\n"
-GRIDS = {"oracle": [5, 20], "rul_threshold": [5], "periodic": [60]}
+GRIDS = {"oracle": [5, 20], "rul_threshold": [5], "corrective_band": [0.5], "periodic": [60]}
 REQUIRED = ("mean_cost", "ci95", "failures", "availability", "maintenance_actions", "cost_ratio_to_oracle", "obs_mode")
-RULES = ("oracle", "rul_threshold", "periodic", "run_to_failure")
+RULES = ("oracle", "rul_threshold", "corrective_band", "periodic", "run_to_failure")
 
 
 @pytest.fixture(scope="module")
@@ -41,13 +41,21 @@ def test_benchmark_json_has_every_policy_with_the_required_keys(tiny):
         assert row["episodes"] == 2 and row["seeds"] == [100_000, 100_001]
         assert len(row["per_episode"]["cost"]) == 2
     assert {n: data["policies"][n]["obs_mode"] for n in RULES} == {
-        "oracle": "oracle", "rul_threshold": "phm", "periodic": "sensors", "run_to_failure": "sensors"}
+        "oracle": "oracle", "rul_threshold": "phm", "corrective_band": "phm", "periodic": "sensors", "run_to_failure": "sensors"}
     assert data["policies"]["oracle"]["parameter"] in GRIDS["oracle"]
     assert data["policies"]["rul_threshold"]["parameter"] == 5 and data["policies"]["periodic"]["parameter"] == 60
+    assert data["policies"]["corrective_band"]["parameter"] == 0.5
+    # the oracle and RulThreshold are tuned over both actions: every (action, threshold) pair has its row
+    for name in ("oracle", "rul_threshold"):
+        tuning = data["tuning"][name]
+        assert [(r["action"], r["parameter"]) for r in tuning["table"]] == [(a, v) for a in ("replace", "corrective") for v in GRIDS[name]]
+        best = min(tuning["table"], key=lambda r: r["mean_cost"])  # the first of equal costs, as the tuning picks
+        assert (tuning["action"], tuning["best"]) == (best["action"], best["parameter"])
+        assert data["policies"][name]["action"] == tuning["action"]
     assert data["policies"]["run_to_failure"]["parameter"] is None
     costs = [data["policies"][n]["mean_cost"] for n in data["ranking"]]
     assert costs == sorted(costs) and sorted(data["ranking"]) == sorted(RULES)
-    assert [data["policies"][n]["rank"] for n in data["ranking"]] == [1, 2, 3, 4]
+    assert [data["policies"][n]["rank"] for n in data["ranking"]] == [1, 2, 3, 4, 5]
     assert data["seeds"]["evaluation"] == [100_000, 100_001] and data["seeds"]["tuning"] == [0, 0]
     assert data["environment"]["horizon"] == 100
 
@@ -66,11 +74,11 @@ def test_markdown_has_the_table_sorted_by_cost_and_the_command(tiny):
     text = (out / "benchmark.md").read_text()
     assert "| rank | policy | obs_mode | tuned parameter | cost [95 % CI] | ×oracle |" in text
     table = [line for line in text.splitlines() if line.startswith("| ") and line.split("|")[1].strip().isdigit()]
-    assert [line.split("**")[1] for line in table[:4]] == result["ranking"]
+    assert [line.split("**")[1] for line in table[:5]] == result["ranking"]
     assert result["commands"]["reproduce"] in text
     assert result["commands"]["reproduce"].startswith("ea-gym benchmark --episodes 2 --seed 0 ")
     assert "--no-ppo" in result["commands"]["reproduce"] and "env_kwargs" in result["commands"]["note"]
-    assert "threshold = 5 s" in text and "period = 60 s" in text
+    assert "threshold = 5 s" in text and "period = 60 s" in text and "band = 0.5" in text
 
 
 def test_figures_are_pngs_and_the_timelines_share_one_seed(tiny):
