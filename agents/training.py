@@ -61,16 +61,18 @@ class TrainingRun:
     teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning
 
 
-#: rule policies a learner can start from (``agents.imitation``), with their default parameter: the
-#: benchmark's tuned oracle threshold and period (s, experiments/results/benchmark); 10 s for the RUL
-#: threshold, the best of 5, 10 and 15 s on 60 development episodes (seeds 300030 on), where the
-#: benchmark's 5 s failed 5 times and 10 s once; CorrectiveBand's band 0.5, the best of 0.3, 0.5 and
-#: 0.7 on 300 development episodes (seeds 300000 on: 110.6, 107.9, 124.6)
-TEACHERS: dict[str, tuple[str, float]] = {
-    "rul_threshold": ("RulThreshold", 10.0),
-    "corrective_band": ("CorrectiveBand", 0.5),
-    "oracle": ("Oracle", 2.0),
-    "periodic": ("Periodic", 120.0),
+#: rule policies a learner can start from (``agents.imitation``): class, default parameter, keyword
+#: arguments. The defaults: the benchmark's tuned oracle threshold and period (s,
+#: experiments/results/benchmark); 10 s for the RUL threshold, the best of 5, 10 and 15 s on 60
+#: development episodes (seeds 300030 on), where the benchmark's 5 s failed 5 times and 10 s once;
+#: CorrectiveBand's band 0.5, the best of 0.3, 0.5 and 0.7 on 300 development episodes (seeds 300000 on:
+#: 110.6, 107.9, 124.6)
+TEACHERS: dict[str, tuple[str, float, dict[str, Any]]] = {
+    "rul_threshold": ("RulThreshold", 10.0, {}),
+    "corrective_band": ("CorrectiveBand", 0.5, {}),
+    "oracle": ("Oracle", 2.0, {}),
+    "oracle_corrective": ("Oracle", 2.0, {"action": "corrective"}),
+    "periodic": ("Periodic", 120.0, {}),
 }
 
 
@@ -80,8 +82,8 @@ def make_teacher(run: TrainingRun, env: VecEnv) -> Any:
 
     if run.teacher not in TEACHERS:
         raise ValueError(f"teacher must be one of {sorted(TEACHERS)}, got {run.teacher!r}")
-    name, default = TEACHERS[run.teacher]
-    return getattr(policies, name)(env, default if run.teacher_parameter is None else run.teacher_parameter)
+    name, default, kwargs = TEACHERS[run.teacher]
+    return getattr(policies, name)(env, default if run.teacher_parameter is None else run.teacher_parameter, **kwargs)
 
 
 def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = None) -> VecEnv:

@@ -2,9 +2,10 @@
 
 What it measures
     ``agents.benchmark.run_benchmark`` on the default ``ea_gym/SpringMassDamper-v0`` (horizon 500 steps of
-    1 s, default costs and wear, ``continue_after_failure=True``): the Oracle (true state, threshold
-    tuned), the trained PPO agent ``agents/data/ppo_phm`` (when it exists), RulThreshold on the PHM chain
-    (threshold tuned), Periodic (period tuned) and RunToFailure, all on the same evaluation seeds
+    1 s, default costs and wear, ``continue_after_failure=True``): the Oracle (true state; replacement or
+    corrective action and threshold tuned), the trained PPO agent ``agents/data/ppo_phm`` (when it
+    exists), RulThreshold on the PHM chain (action and threshold tuned), CorrectiveBand on the PHM chain
+    (band tuned), Periodic (period tuned) and RunToFailure, all on the same evaluation seeds
     100000 + seed * 10000 + i, tuned on seeds 0 .. tune_episodes - 1. For the value of information it
     also evaluates, when present, the PPO agents trained on the other information regimes,
     ``agents/data/ppo_sensors`` and ``agents/data/ppo_oracle`` (missing ones are listed as skipped).
@@ -16,7 +17,7 @@ How to run (from the repository root)
     Writes DIR/benchmark.json, benchmark.md, cost_distribution.png, timelines.png and timelines.json
     (default DIR: experiments/results/benchmark), atomically, with the exact command in the markdown.
     Tuning uses 30 episodes per grid value (neighbouring thresholds differ by less than the noise of 10).
-    The whole run takes about 10 to 16 minutes on the 2-core machine.
+    The whole run takes about 20 to 25 minutes on the 2-core machine.
 """
 
 from __future__ import annotations

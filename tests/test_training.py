@@ -6,7 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.training import TrainingRun, load_policy, train
+from agents.policies import CorrectiveBand, Oracle
+from agents.training import TrainingRun, load_policy, make_teacher, make_vec_env, train
 from ea_gym.cli import main
 
 
@@ -81,3 +82,11 @@ def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
     assert summary["selected"]["checkpoint"] in ("0 steps", "128 steps")
     with pytest.raises(ValueError, match="teacher must be one of"):
         train(TrainingRun(timesteps=64, teacher="guess", n_envs=2, hyperparameters={"n_steps": 32, "batch_size": 64}), tmp_path / "x", progress_bar=False)
+
+
+def test_teachers_are_the_named_rules_with_their_settings():
+    env = make_vec_env(TrainingRun(obs_mode="oracle", n_envs=2), 2, seed=0)
+    corrective = make_teacher(TrainingRun(obs_mode="oracle", teacher="oracle_corrective", teacher_parameter=3.0), env)
+    assert isinstance(corrective, Oracle) and corrective.action == "corrective" and corrective.threshold == 3.0
+    band = make_teacher(TrainingRun(obs_mode="oracle", teacher="corrective_band"), env)
+    assert isinstance(band, CorrectiveBand) and band.band == 0.5
