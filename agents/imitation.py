@@ -53,7 +53,7 @@ def collect(env: VecNormalize, teacher: Any, steps: int, restore: Callable[[dict
     The normalisation statistics of ``env`` are updated as the steps go; the unnormalised observations
     and rewards are returned so that they can be normalised afterwards with the final statistics.
     ``restore`` turns an unnormalised observation of ``env`` back into the environment's own (see
-    ``agents.observations.LogRul``), which is what the teacher reads.
+    ``agents.observations.LearnerView``), which is what the teacher reads.
     """
     n = env.num_envs
     env.reset()

@@ -9,6 +9,11 @@ learner must make, replacing the suspect shortly before its End of Life, then ca
 
 So the bounded keys pass unnormalised, and the RUL (s) goes on a log scale in [0, 1],
 log(1 + rul) / log(1 + rul_max), which resolves the last seconds as well as the last minutes.
+
+The parameter estimates are positions in each component's safe range, and the nominal value sits at
+a different position for each (0.75 for the spring's (85, 105) N/m): a key ``wear`` adds each
+component's way covered from nominal toward the limit on its estimate's side (0 at nominal, 1 at the
+limit), the coordinate in which a corrective rule acts (``agents.policies.CorrectiveBand``).
 """
 
 from __future__ import annotations
@@ -29,31 +34,44 @@ def normalised_keys(observation_space: spaces.Dict) -> list[str]:
     return [key for key in NORMALISED_KEYS if key in observation_space.spaces]
 
 
-class LogRul(VecEnvWrapper):
-    """Replaces ``observation["rul"]`` (s, in [0, rul_max]) by log(1 + rul) / log(1 + rul_max).
+class LearnerView(VecEnvWrapper):
+    """Replaces ``observation["rul"]`` (s, in [0, rul_max]) by log(1 + rul) / log(1 + rul_max) and adds
+    ``observation["wear"]``, each component's way from nominal to the limit its estimate heads for,
+    clipped to [0, 2].
 
-    Observations without a ``rul`` key (obs_mode "sensors") pass unchanged.
+    Observations without ``rul`` or ``parameter_estimate`` (obs_mode "sensors") pass unchanged.
     """
 
     def __init__(self, venv: VecEnv):
+        from agents.policies import ActionMap  # the nominal positions, read from the environment
+
         space: spaces.Dict = venv.observation_space
         self.scale = math.log1p(float(np.max(space["rul"].high))) if "rul" in space.spaces else None
         if self.scale is not None:
             space = spaces.Dict({**space.spaces, "rul": spaces.Box(0.0, 1.0, space["rul"].shape, np.float32)})
+        self.nominal = None
+        if "parameter_estimate" in space.spaces:
+            self.nominal = np.array(ActionMap.from_env(venv).nominal_positions, dtype=np.float32)
+            space = spaces.Dict({**space.spaces, "wear": spaces.Box(0.0, 2.0, self.nominal.shape, np.float32)})
         super().__init__(venv, observation_space=space)
 
     def forward(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
         """The learner's view of an environment observation (single or batched)."""
-        if self.scale is None:
-            return observation
-        rul = np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale
-        return {**observation, "rul": rul.astype(np.float32)}
+        view = dict(observation)
+        if self.scale is not None and "rul" in observation:
+            view["rul"] = (np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale).astype(np.float32)
+        if self.nominal is not None and "parameter_estimate" in observation:
+            position, nominal = observation["parameter_estimate"], self.nominal
+            way = np.where(position < nominal, (nominal - position) / nominal, (position - nominal) / (1.0 - nominal))
+            view["wear"] = np.clip(way, 0.0, 2.0).astype(np.float32)
+        return view
 
     def inverse(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The environment observation back from the learner's view (RUL in s again)."""
-        if self.scale is None:
-            return observation
-        return {**observation, "rul": np.expm1(observation["rul"].astype(float) * self.scale).astype(np.float32)}
+        """The environment observation back from the learner's view (RUL in s again, no ``wear``)."""
+        restored = {key: value for key, value in observation.items() if key != "wear"}
+        if self.scale is not None and "rul" in observation:
+            restored["rul"] = np.expm1(observation["rul"].astype(float) * self.scale).astype(np.float32)
+        return restored
 
     def reset(self) -> Any:
         return self.forward(self.venv.reset())

@@ -27,7 +27,7 @@ from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, 
 
 import ea_gym  # noqa: F401 - registers the environments
 from agents.imitation import clone
-from agents.observations import LogRul, normalised_keys
+from agents.observations import LearnerView, normalised_keys
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
@@ -98,7 +98,7 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
         raise ValueError(f"vec_env must be 'batched' or 'subproc', got {kind!r}")
     env.seed(seed)
     # VecMonitor: episode returns and lengths for the logs and the evaluation callback
-    return LogRul(VecMonitor(env))
+    return LearnerView(VecMonitor(env))
 
 
 def normalize(env: VecEnv, training: bool = True) -> VecNormalize:

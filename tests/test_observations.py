@@ -5,13 +5,13 @@ import math
 import numpy as np
 
 from agents.imitation import discounted_returns
-from agents.observations import LogRul, normalised_keys
+from agents.observations import LearnerView, normalised_keys
 from agents.training import TrainingRun, make_vec_env
 
 
 def test_log_rul_separates_the_last_minutes_and_inverts_exactly():
     env = make_vec_env(TrainingRun(obs_mode="phm"), 2, 0)
-    assert isinstance(env, LogRul)
+    assert isinstance(env, LearnerView)
     observation = env.reset()
     assert env.observation_space["rul"].contains(observation["rul"][0])
     rul = np.array([[0.0, 5.0, 150.0], [10.0, 999.0, 1000.0]], np.float32)
@@ -23,6 +23,17 @@ def test_log_rul_separates_the_last_minutes_and_inverts_exactly():
     assert normalised_keys(env.observation_space) == ["ea", "residual", "time_since_maintenance"]
     sensors = make_vec_env(TrainingRun(obs_mode="sensors"), 1, 0)
     assert "rul" not in sensors.observation_space.spaces and sensors.forward({"ea": rul})["ea"] is rul
+    assert "wear" not in sensors.observation_space.spaces
+
+
+def test_wear_is_the_way_from_nominal_to_the_limit_on_the_estimates_side():
+    env = make_vec_env(TrainingRun(obs_mode="phm"), 2, 0)
+    assert env.observation_space["wear"].contains(env.reset()["wear"][0])
+    # components (k, m, b), nominal positions 0.75, 0.5, 0.5 of their safe ranges
+    estimate = np.array([[0.9, 0.1, 0.5], [0.375, 1.0, -0.5]], np.float32)
+    view = env.forward({"parameter_estimate": estimate, "rul": np.zeros((2, 3), np.float32)})
+    np.testing.assert_allclose(view["wear"], [[0.6, 0.8, 0.0], [0.5, 1.0, 2.0]], rtol=1e-6)
+    assert "wear" not in env.inverse(view) and env.inverse(view)["parameter_estimate"] is estimate
 
 
 def test_discounted_returns_stop_at_episode_ends():
