@@ -16,20 +16,20 @@ evaluation seeds (common random numbers: per-seed cost differences are paired), 
 
 Policies (environment ``ea_gym/SpringMassDamper-v0``, ``continue_after_failure=True``):
 
-=================  ===========  ===================================================================
-name               obs_mode     policy
-=================  ===========  ===================================================================
-``oracle``         oracle       ``Oracle``: replace the truly degrading component, or apply a corrective
-                                action on it, when its true RUL falls below the threshold (action and
-                                threshold tuned): the reference lower bound
-``ppo``            its own      a PPO agent loaded with ``agents.training.load_policy``
-``rul_threshold``  phm          ``RulThreshold`` on the PHM chain's diagnosis and RUL (action and
-                                threshold tuned)
-``corrective_band`` phm         ``CorrectiveBand``: corrective actions on the suspect while its estimate
-                                is beyond a band toward its limit (band tuned)
-``periodic``       sensors      ``Periodic`` block replacement of every component (period tuned)
-``run_to_failure`` sensors      ``RunToFailure``: never maintain
-=================  ===========  ===================================================================
+===================  ========  ====================================================================
+name                 obs_mode  policy
+===================  ========  ====================================================================
+``oracle``           oracle    ``Oracle``: replace the truly degrading component, or apply a corrective
+                               action on it, when its true RUL falls below the threshold (action and
+                               threshold tuned): the reference lower bound
+``ppo``              its own   a PPO agent loaded with ``agents.training.load_policy``
+``rul_threshold``    phm       ``RulThreshold`` on the PHM chain's diagnosis and RUL (action and
+                               threshold tuned)
+``corrective_band``  phm       ``CorrectiveBand``: corrective actions on the suspect while its estimate
+                               is beyond a band toward its limit (band tuned)
+``periodic``         sensors   ``Periodic`` block replacement of every component (period tuned)
+``run_to_failure``   sensors   ``RunToFailure``: never maintain
+===================  ========  ====================================================================
 
 plus any extra trained agents (``ppo_policies``, e.g. ``ppo_sensors`` and ``ppo_oracle``, for the value
 of information: the same learner given less or more information).
