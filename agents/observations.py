@@ -25,6 +25,8 @@ import numpy as np
 from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
+from agents.policies import ActionMap, wear_fraction
+
 #: keys standardised by VecNormalize; the others are bounded and passed as they are
 NORMALISED_KEYS = ("ea", "residual", "time_since_maintenance")
 
@@ -43,8 +45,6 @@ class LearnerView(VecEnvWrapper):
     """
 
     def __init__(self, venv: VecEnv):
-        from agents.policies import ActionMap  # the nominal positions, read from the environment
-
         space: spaces.Dict = venv.observation_space
         self.scale = math.log1p(float(np.max(space["rul"].high))) if "rul" in space.spaces else None
         if self.scale is not None:
@@ -61,9 +61,7 @@ class LearnerView(VecEnvWrapper):
         if self.scale is not None and "rul" in observation:
             view["rul"] = (np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale).astype(np.float32)
         if self.nominal is not None and "parameter_estimate" in observation:
-            position, nominal = observation["parameter_estimate"], self.nominal
-            way = np.where(position < nominal, (nominal - position) / nominal, (position - nominal) / (1.0 - nominal))
-            view["wear"] = np.clip(way, 0.0, 2.0).astype(np.float32)
+            view["wear"] = np.clip(wear_fraction(observation["parameter_estimate"], self.nominal), 0.0, 2.0).astype(np.float32)
         return view
 
     def inverse(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

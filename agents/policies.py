@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand"]
+__all__ = ["ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand", "wear_fraction"]
 
 
 @dataclass(frozen=True)
@@ -367,6 +367,13 @@ class Oracle(RulThreshold):
             raise ValueError(f"Oracle reads the true faulty component and RUL: make the env with obs_mode='oracle', not {mode!r}")
 
 
+def wear_fraction(position: np.ndarray, nominal: np.ndarray) -> np.ndarray:
+    """The way a parameter has gone from its nominal value toward the safe limit on its side: 0 at
+    nominal, 1 at the limit. ``position`` and ``nominal`` are positions in the safe range (0 the lower
+    limit, 1 the upper, as in ``parameter_estimate``), broadcasting against each other."""
+    return np.where(position < nominal, (nominal - position) / nominal, (position - nominal) / (1.0 - nominal))
+
+
 class CorrectiveBand(RulePolicy):
     """Condition-based corrective maintenance on the parameter estimate: while the suspect's estimated
     parameter has gone more than ``band`` of the way from its nominal value to the safe limit on its
@@ -419,10 +426,7 @@ class CorrectiveBand(RulePolicy):
         suspect = np.argmax(faults, axis=1)
         rows = np.arange(n)
         share = faults[rows, suspect] / np.maximum(faults.sum(axis=1), 1e-12)
-        position = estimate[rows, self._estimate_column[suspect]]
-        nominal = self._nominal[suspect]
-        # the way covered toward the limit on the estimate's side of nominal
-        way = np.where(position < nominal, (nominal - position) / nominal, (position - nominal) / (1.0 - nominal))
+        way = wear_fraction(estimate[rows, self._estimate_column[suspect]], self._nominal[suspect])
         down = obs["maintenance_in_progress"][:, 0] > 0.5
         act = ~down & (faults.sum(axis=1) > 0) & (share >= self.share) & (way > self.band)
         return np.where(act, self._corrective[suspect], 0), None

@@ -466,7 +466,7 @@ class PHMChain:
             noise = s["noise"][counted].sum(-1)
             frame = self.monitor.frame_of(
                 s["ea"][counted], s["ea_reference"][counted],
-                s["gram"][counted][..., -self.frame_steps :].sum(-1), s["cross"][counted][..., -self.frame_steps :].sum(-1), noise,
+                s["gram"][counted, ..., -self.frame_steps :].sum(-1), s["cross"][counted, ..., -self.frame_steps :].sum(-1), noise,
             )
             features = frame_features(frame, self.classifier.variant, self.model.excitation_bandwidth)
             probabilities[counted] = self.classifier.predict_proba(features)
@@ -501,7 +501,7 @@ class PHMChain:
         return diagnosis
 
     def _balance_evidence(self) -> np.ndarray:
-        """Likelihood ratio (N, K) of each class to the best one from the energy balance of the last balance span."""
+        """Likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
         s = self.state
         evidence = np.ones((self.n, len(self.classes)))
         rows = np.flatnonzero(s["alarm"])
@@ -509,7 +509,7 @@ class PHMChain:
             return evidence
         span = self.evidence_steps
         chi2 = balance_chi_square(
-            s["gram"][rows][..., -span:].sum(-1), s["cross"][rows][..., -span:].sum(-1), s["balance_square"][rows].sum(-1),
+            s["gram"][rows, ..., -span:].sum(-1), s["cross"][rows, ..., -span:].sum(-1), s["balance_square"][rows].sum(-1),
             np.minimum(s["steps"][rows], span) * self.balance_windows_per_step, self._balance_column,
         )
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
