@@ -202,7 +202,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--teacher", choices=["rul_threshold", "corrective_band", "oracle", "oracle_corrective", "periodic"], default=None,
                        help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
     train.add_argument("--teacher-parameter", type=float, default=None,
-                       help="the teacher's RUL threshold or period in s, or its band (default: agents.training.TEACHERS)")
+                       help="the teacher's RUL threshold or period in s, or its band for every component (default: agents.training.TEACHERS)")
     train.add_argument("--teacher-steps", type=_positive_int, default=100_000, help="environment steps the teacher runs (default 100000)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     train.set_defaults(run=_train)

@@ -121,6 +121,32 @@ def test_corrective_band_corrects_the_suspect_beyond_its_band_toward_either_limi
         CorrectiveBand(ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS), 1.0)
 
 
+def test_corrective_band_per_component_holds_each_component_in_its_own_band():
+    phm = ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS)
+    policy = CorrectiveBand(phm, band={"k": 0.8, "m": 0.8, "b": 0.4})
+
+    def suspect(component, position):
+        o = obs(component)
+        o["parameter_estimate"][COMPONENTS.index(component)] = position
+        return o
+
+    # b: 0.25 is 50 % of the way down from 0.5, beyond its 0.4; 0.32 is 36 %, inside
+    assert act(policy, suspect("b", 0.25)) == CORRECT["b"] and act(policy, suspect("b", 0.32)) == 0
+    # k: 0.97 is 88 % of the way up from 0.75, beyond its 0.8; 0.9 is 60 %, inside (a uniform 0.4 would act)
+    assert act(policy, suspect("k", 0.97)) == CORRECT["k"] and act(policy, suspect("k", 0.9)) == 0
+    assert act(policy, suspect("m", 0.05)) == CORRECT["m"] and act(policy, suspect("m", 0.15)) == 0
+    # batched: each row is held to its own suspect's band
+    actions, _ = policy.predict(batch(suspect("b", 0.25), suspect("k", 0.9), suspect("m", 0.05)))
+    assert actions.tolist() == [CORRECT["b"], 0, CORRECT["m"]]
+    assert policy.band == {"k": 0.8, "m": 0.8, "b": 0.4}
+    with pytest.raises(ValueError, match=r"missing \['b'\]"):
+        CorrectiveBand(phm, band={"k": 0.8, "m": 0.8})
+    with pytest.raises(ValueError, match=r"unknown \['c'\]"):
+        CorrectiveBand(phm, band={"k": 0.8, "m": 0.8, "b": 0.4, "c": 0.5})
+    with pytest.raises(ValueError, match=r"band\['m'\] must be a fraction"):
+        CorrectiveBand(phm, band={"k": 0.8, "m": 1.2, "b": 0.4})
+
+
 def test_batched_observations_give_one_action_per_env():
     policy = RulThreshold(ACTIONS, 10.0)
     o = batch(obs("k", 5.0), obs("none", 0.0), obs("b", 50.0), obs("m", 1.0), obs("m", 1.0, down=1.0))

@@ -10,7 +10,7 @@ from agents.benchmark import evaluation_seeds, run_benchmark, tuning_seeds
 from ea_gym.cli import main
 
 PNG = b"\x89PNG\r\n\x1a\n"
-GRIDS = {"oracle": [5, 20], "rul_threshold": [5], "corrective_band": [0.5], "periodic": [60]}
+GRIDS = {"oracle": [5, 20], "rul_threshold": [5], "corrective_band": [{"k": 0.8, "m": 0.8, "b": 0.4}], "periodic": [60]}
 REQUIRED = ("mean_cost", "ci95", "failures", "availability", "maintenance_actions", "cost_ratio_to_oracle", "obs_mode")
 RULES = ("oracle", "rul_threshold", "corrective_band", "periodic", "run_to_failure")
 
@@ -44,7 +44,7 @@ def test_benchmark_json_has_every_policy_with_the_required_keys(tiny):
         "oracle": "oracle", "rul_threshold": "phm", "corrective_band": "phm", "periodic": "sensors", "run_to_failure": "sensors"}
     assert data["policies"]["oracle"]["parameter"] in GRIDS["oracle"]
     assert data["policies"]["rul_threshold"]["parameter"] == 5 and data["policies"]["periodic"]["parameter"] == 60
-    assert data["policies"]["corrective_band"]["parameter"] == 0.5
+    assert data["policies"]["corrective_band"]["parameter"] == {"k": 0.8, "m": 0.8, "b": 0.4}
     # the oracle and RulThreshold are tuned over both actions: every (action, threshold) pair has its row
     for name in ("oracle", "rul_threshold"):
         tuning = data["tuning"][name]
@@ -78,7 +78,7 @@ def test_markdown_has_the_table_sorted_by_cost_and_the_command(tiny):
     assert result["commands"]["reproduce"] in text
     assert result["commands"]["reproduce"].startswith("ea-gym benchmark --episodes 2 --seed 0 ")
     assert "--no-ppo" in result["commands"]["reproduce"] and "env_kwargs" in result["commands"]["note"]
-    assert "threshold = 5 s" in text and "period = 60 s" in text and "band = 0.5" in text
+    assert "threshold = 5 s" in text and "period = 60 s" in text and "band = k 0.8, m 0.8, b 0.4" in text
 
 
 def test_figures_are_pngs_and_the_timelines_share_one_seed(tiny):

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from agents.policies import CorrectiveBand, Oracle
-from agents.training import TrainingRun, load_policy, make_teacher, make_vec_env, train
+from agents.training import TEACHERS, TrainingRun, load_policy, make_teacher, make_vec_env, train
 from ea_gym.cli import main
 
 
@@ -89,4 +89,4 @@ def test_teachers_are_the_named_rules_with_their_settings():
     corrective = make_teacher(TrainingRun(obs_mode="oracle", teacher="oracle_corrective", teacher_parameter=3.0), env)
     assert isinstance(corrective, Oracle) and corrective.action == "corrective" and corrective.threshold == 3.0
     band = make_teacher(TrainingRun(obs_mode="oracle", teacher="corrective_band"), env)
-    assert isinstance(band, CorrectiveBand) and band.band == 0.3
+    assert isinstance(band, CorrectiveBand) and band.band == TEACHERS["corrective_band"][1]
