@@ -58,7 +58,7 @@ from agents.policies import ActionMap, CorrectiveBand, Oracle, Periodic, RulThre
 
 __all__ = [
     "ENV_ID", "PERIODS", "THRESHOLDS", "BANDS", "ACTIONS", "DEFAULT_GRIDS", "EVALUATION_SEED_BASE", "EVALUATION_SEED_STRIDE",
-    "env_factory", "evaluation_seeds", "tuning_seeds", "paired", "fmt_ci", "fmt_diff", "record_timeline",
+    "env_factory", "vector_env_factory", "evaluation_seeds", "tuning_seeds", "paired", "fmt_ci", "fmt_diff", "record_timeline",
     "plot_cost_distribution", "plot_timelines", "markdown", "run_benchmark",
 ]
 
@@ -97,6 +97,16 @@ def env_factory(obs_mode: str, **env_kwargs: Any) -> Callable[[], Any]:
 
     kwargs = {"obs_mode": obs_mode, "continue_after_failure": True, **env_kwargs}
     return lambda: gym.make(ENV_ID, **kwargs)
+
+
+def vector_env_factory(obs_mode: str, **env_kwargs: Any) -> Callable[[int], Any]:
+    """``(n) -> vector env``: ``env_factory``'s environment, n of them batched (``ea_gym.env.vector``)."""
+    import gymnasium as gym
+
+    import ea_gym  # noqa: F401 - registers the environments
+
+    kwargs = {"obs_mode": obs_mode, "continue_after_failure": True, **env_kwargs}
+    return lambda n: gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
 
 
 def evaluation_seeds(seed: int, episodes: int) -> range:
@@ -574,9 +584,10 @@ def run_benchmark(
     seed: int,
     out: Path,
     ppo: Path | None,
-    tune_episodes: int = 30,
+    tune_episodes: int = 300,
     progress: bool = True,
     *,
+    batch_size: int = 100,
     ppo_policies: Mapping[str, Path] | None = None,
     grids: Mapping[str, Sequence[float]] | None = None,
     env_kwargs: Mapping[str, Any] | None = None,
@@ -595,6 +606,8 @@ def run_benchmark(
             training obs_mode; None, or a directory without a model, skips it (noted in the outputs).
         tune_episodes: tuning episodes (seeds 0 .. tune_episodes - 1) per grid value.
         progress: progress bars and one line per stage.
+        batch_size: the most episodes tuned or evaluated side by side on the batched environment (its
+            episodes equal the single environment's bit for bit); the timelines step one environment.
         ppo_policies: more trained agents, name -> directory (e.g. ``{"ppo_sensors": ..., "ppo_oracle": ...}``),
             for the value-of-information comparison; missing ones are skipped with a note.
         grids: tuning grids by policy (``"oracle"``, ``"rul_threshold"``: thresholds in s, tried with each
@@ -656,8 +669,8 @@ def run_benchmark(
         say(f"  {label}: {timings[label]:.1f} s")
         return value
 
-    make = lambda mode: env_factory(mode, **env_kwargs)  # noqa: E731
-    probe = make("oracle")()
+    make = lambda mode: vector_env_factory(mode, **env_kwargs)  # noqa: E731
+    probe = env_factory("oracle", **env_kwargs)()
     try:
         actions = ActionMap.from_env(probe)
         base = probe.unwrapped
@@ -681,7 +694,7 @@ def run_benchmark(
         for action in ACTIONS if name in ("oracle", "rul_threshold") else (None,):
             best, table = timed(
                 f"tune {name}" + (f" ({action})" if action else ""),
-                lambda name=name, grid=grid, mode=mode, action=action: tune(lambda v: builders[name](v, action), grid, make(mode), tuning, progress),
+                lambda name=name, grid=grid, mode=mode, action=action: tune(lambda v: builders[name](v, action), grid, make(mode), tuning, progress, batch_size),
             )
             candidates.append((min(r["mean_cost"] for r in table), best, action))
             rows += [{"action": action, **r} if action else r for r in table]
@@ -727,7 +740,7 @@ def run_benchmark(
         entry = plan[name]
 
         def run_policy(entry=entry, name=name) -> EpisodeStats:
-            return evaluate(entry["policy"], make(entry["obs_mode"]), evaluation, progress, description=name)
+            return evaluate(entry["policy"], make(entry["obs_mode"]), evaluation, progress, description=name, batch_size=batch_size)
 
         def run_timeline(entry=entry) -> dict[str, Any]:
             return record_timeline(entry["policy"], entry["obs_mode"], timeline_seed, env_kwargs)

@@ -2,7 +2,9 @@
 
 ``evaluate(policy, env_factory, seeds)`` builds one environment with ``env_factory()`` and runs one
 episode per seed (``env.reset(seed=seed)``) to its end (termination or truncation), calling
-``policy.predict(observation, state=state, episode_start=...)`` like an SB3 model. Per episode it records:
+``policy.predict(observation, state=state, episode_start=...)`` like an SB3 model; with ``batch_size=B`` it
+runs up to B episodes side by side on a vector environment ``env_factory(n)`` instead (one batched
+``predict`` per step), with the same records. Per episode it records:
 
 - ``cost``: the summed ``info["cost"]["total"]`` (= minus the summed reward), and each item of the
   breakdown summed (``cost_corrective``, ``cost_replacement``, ``cost_failure``, ``cost_lost_production``);
@@ -25,7 +27,7 @@ The 95 % confidence interval of the mean cost is the normal approximation mean Â
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -125,11 +127,48 @@ class EpisodeStats:
         }
 
 
+class _Tally:
+    """The per-episode records (see the module docstring) of n episodes stepped side by side: n = 1 for
+    one environment, n = the batch for a vector environment. Only the episodes marked active at a step
+    count it (a vector environment's finished episodes are reset and stepped on, unrecorded)."""
+
+    def __init__(self, n: int, action_meanings: Sequence[str]):
+        self.sums = {key: np.zeros(n) for key in _FIELDS if key != "availability"}
+        self.down_steps = np.zeros(n)
+        meanings = list(action_meanings)
+        self._replace = np.array([m.startswith("replace ") for m in meanings] + [False])
+        self._corrective = np.array([m.startswith("corrective action on ") for m in meanings] + [False])
+
+    def step(
+        self, actions: np.ndarray, was_down: np.ndarray, costs: Mapping[str, Any], failed: np.ndarray,
+        events: Sequence[Sequence[str]], active: np.ndarray,
+    ) -> None:
+        """Count one step: the actions given (n,), whether each machine was down before it (n,), the step's
+        ``info`` entries ``cost`` (item -> (n,)), ``failed`` (n,) and ``events`` (n lists)."""
+        s, counted = self.sums, active.astype(float)
+        s["steps"] += counted
+        s["cost"] += counted * np.asarray(costs["total"], dtype=float)
+        for item in COST_ITEMS:
+            s[f"cost_{item}"] += counted * np.asarray(costs[item], dtype=float)
+        s["failures"] += counted * np.asarray(failed, dtype=bool)
+        replaced = np.array([any(event.startswith("replacement of") for event in happened) for happened in events])
+        self.down_steps += counted * (was_down | replaced)
+        ordered = active & (actions != 0)
+        s["ignored_actions"] += ordered & was_down
+        carried = ordered & ~was_down
+        s["maintenance_actions"] += carried
+        known = np.minimum(actions, len(self._replace) - 1)  # an index past the meanings is neither kind
+        s["replacements"] += carried & self._replace[known]
+        s["corrective_steps"] += carried & self._corrective[known]
+
+    def records(self) -> dict[str, np.ndarray]:
+        return {**self.sums, "availability": 1.0 - self.down_steps / self.sums["steps"]}
+
+
 def _episode(policy: Any, env: Any, seed: int) -> dict[str, float]:
     observation, _ = env.reset(seed=seed)
-    meanings = tuple(getattr(env.unwrapped, "action_meanings", ()))
-    record = dict.fromkeys(_FIELDS, 0.0)
-    state, start, down_steps = None, True, 0
+    tally = _Tally(1, getattr(env.unwrapped, "action_meanings", ()))
+    state, start = None, True
     while True:
         action, state = policy.predict(observation, state=state, episode_start=np.array([start]), deterministic=True)
         start = False
@@ -139,66 +178,92 @@ def _episode(policy: Any, env: Any, seed: int) -> dict[str, float]:
         action = int(action.reshape(-1)[0])
         was_down = bool(np.asarray(observation["maintenance_in_progress"]).reshape(-1)[0] > 0.5)
         observation, _, terminated, truncated, info = env.step(action)
-        record["steps"] += 1
-        record["cost"] += info["cost"]["total"]
-        for item in COST_ITEMS:
-            record[f"cost_{item}"] += info["cost"][item]
-        record["failures"] += bool(info["failed"])
-        if was_down or any(event.startswith("replacement of") for event in info["events"]):
-            down_steps += 1
-        if action != 0:
-            if was_down:
-                record["ignored_actions"] += 1
-            else:
-                record["maintenance_actions"] += 1
-                meaning = meanings[action] if action < len(meanings) else ""
-                if meaning.startswith("replace "):
-                    record["replacements"] += 1
-                elif meaning.startswith("corrective action on "):
-                    record["corrective_steps"] += 1
+        tally.step(np.array([action]), np.array([was_down]), info["cost"], np.array([info["failed"]]), [info["events"]], np.array([True]))
         if terminated or truncated:
             break
-    record["availability"] = 1.0 - down_steps / record["steps"]
-    return record
+    return {key: float(value[0]) for key, value in tally.records().items()}
+
+
+def _batch(policy: Any, env: Any, seeds: Sequence[int], progress: Any) -> dict[str, np.ndarray]:
+    """One episode per seed on a vector environment of ``len(seeds)`` envs, every episode run once to its end."""
+    n = len(seeds)
+    observation, _ = env.reset(seed=[int(s) for s in seeds])
+    tally = _Tally(n, getattr(env.unwrapped, "action_meanings", ()))
+    state, start, active = None, np.ones(n, dtype=bool), np.ones(n, dtype=bool)
+    while np.any(active):
+        action, state = policy.predict(observation, state=state, episode_start=start, deterministic=True)
+        start = np.zeros(n, dtype=bool)
+        action = np.asarray(action)
+        if action.shape != (n,):
+            raise ValueError(f"the policy must return one action per env ({n}) for a batch of observations, got shape {action.shape}")
+        action = action.astype(np.int64)
+        was_down = np.asarray(observation["maintenance_in_progress"]).reshape(n) > 0.5
+        observation, _, terminated, truncated, info = env.step(action)
+        tally.step(action, was_down, info["cost"], info["failed"], info["events"], active)
+        ended = active & (np.asarray(terminated) | np.asarray(truncated))
+        active &= ~ended
+        progress.update(int(ended.sum()))
+    return tally.records()
 
 
 def evaluate(
     policy: Any,
-    env_factory: Callable[[], Any],
+    env_factory: Callable[..., Any],
     seeds: Iterable[int],
     progress: bool = True,
     description: str | None = None,
+    batch_size: int | None = None,
 ) -> EpisodeStats:
     """Run one episode per seed and record its numbers.
 
     Args:
         policy: anything with SB3's ``predict`` (a rule of ``agents.policies`` or an SB3 model), or a
-            callable ``policy(env) -> policy`` that builds it from the environment made here.
-        env_factory: ``() -> env``, e.g. ``lambda: gym.make("ea_gym/SpringMassDamper-v0", ...)``; called
-            once, the environment is reset with each seed and closed at the end.
+            callable ``policy(env) -> policy`` that builds it from the (first) environment made here.
+        env_factory: with ``batch_size`` None, ``() -> env``, e.g. ``lambda: gym.make("ea_gym/SpringMassDamper-v0",
+            ...)``: called once, the environment is reset with each seed in turn. With a ``batch_size``,
+            ``(n) -> vector env`` of n environments (a gymnasium ``VectorEnv`` that takes a list of
+            seeds, e.g. ``lambda n: gym.make_vec(..., num_envs=n, vectorization_mode="vector_entry_point")``).
+            Environments are closed at the end.
         seeds: one episode per seed, in order.
         progress: show a tqdm progress bar over the episodes.
         description: the progress bar's label (default the policy's repr).
+        batch_size: None, or the most episodes run side by side: the seeds are taken in batches, each
+            on one vector environment, every episode run once to its end. The batched environment's
+            episodes equal the single environment's bit for bit, so the records are the same (a learned
+            policy's batched forward pass may round differently from one observation at a time).
     """
     seeds = np.array([int(s) for s in seeds], dtype=np.int64)
     if seeds.size == 0:
         raise ValueError("seeds must hold at least one seed")
-    env = env_factory()
-    try:
-        if not hasattr(policy, "predict"):
-            if not callable(policy):
-                raise TypeError(f"policy must have a predict method or be a callable env -> policy, got {type(policy).__name__}")
-            policy = policy(env)
-        if hasattr(policy, "reset"):
-            policy.reset()
-        from tqdm.auto import tqdm
+    if batch_size is not None and not (isinstance(batch_size, (int, np.integer)) and batch_size >= 1):
+        raise ValueError(f"batch_size must be None or a positive int, got {batch_size!r}")
+    from tqdm.auto import tqdm
 
-        records = [
-            _episode(policy, env, int(seed))
-            for seed in tqdm(seeds, desc=description or repr(policy), disable=not progress, leave=False)
-        ]
-    finally:
-        env.close()
+    label = description
+    batches = [seeds] if batch_size is None else [seeds[i : i + batch_size] for i in range(0, seeds.size, batch_size)]
+    records: list[dict[str, Any]] = []
+    with tqdm(total=seeds.size, desc=label, disable=not progress, leave=False) as bar:
+        for batch in batches:
+            env = env_factory() if batch_size is None else env_factory(len(batch))
+            try:
+                if not hasattr(policy, "predict"):
+                    if not callable(policy):
+                        raise TypeError(f"policy must have a predict method or be a callable env -> policy, got {type(policy).__name__}")
+                    policy = policy(env)
+                if label is None:
+                    label = repr(policy)
+                    bar.set_description(label)
+                if hasattr(policy, "reset"):
+                    policy.reset()
+                if batch_size is None:
+                    for seed in batch:
+                        records.append(_episode(policy, env, int(seed)))
+                        bar.update(1)
+                else:
+                    batched = _batch(policy, env, batch, bar)
+                    records += [{key: value[i] for key, value in batched.items()} for i in range(len(batch))]
+            finally:
+                env.close()
     per_episode = {key: np.array([r[key] for r in records], dtype=float) for key in _FIELDS}
     return EpisodeStats(seeds=seeds, per_episode=per_episode, policy=repr(policy))
 
@@ -209,13 +274,14 @@ def tune(
     env_factory: Callable[[], Any],
     seeds: Iterable[int],
     progress: bool = True,
+    batch_size: int | None = None,
 ) -> tuple[Any, list[dict[str, Any]]]:
     """Grid search of one policy parameter on (training) seeds: the value of least mean cost.
 
     Args:
         policy_factory: ``parameter -> policy`` (or ``parameter -> (env -> policy)``, see ``evaluate``).
         grid: the parameter values tried, in order; ties go to the earlier one.
-        env_factory, seeds, progress: as in ``evaluate`` (the same seeds for every value).
+        env_factory, seeds, progress, batch_size: as in ``evaluate`` (the same seeds for every value).
 
     Returns:
         (best parameter, table): one JSON-ready row per value with ``parameter``, ``mean_cost``,
@@ -227,7 +293,7 @@ def tune(
     seeds = list(seeds)
     table = []
     for parameter in grid:
-        stats = evaluate(policy_factory(parameter), env_factory, seeds, progress, description=f"tune {parameter!r}")
+        stats = evaluate(policy_factory(parameter), env_factory, seeds, progress, description=f"tune {parameter!r}", batch_size=batch_size)
         low, high = stats.ci95
         table.append({
             "parameter": parameter,

@@ -232,8 +232,8 @@ def build_parser() -> argparse.ArgumentParser:
         "agents/data/ppo_phm of the installed package when it exists; a directory without a model is skipped with a note",
     )
     ppo_choice.add_argument("--no-ppo", action="store_true", help="evaluate no PPO agent (noted as skipped)")
-    benchmark.add_argument("--tune-episodes", type=_positive_int, default=30, metavar="K",
-                           help="tuning episodes per grid value, seeds 0..K-1 (default 30)")
+    benchmark.add_argument("--tune-episodes", type=_positive_int, default=300, metavar="K",
+                           help="tuning episodes per grid value, seeds 0..K-1 (default 300)")
     benchmark.add_argument("--no-progress", action="store_true", help="no progress bars")
     benchmark.set_defaults(run=_benchmark)
     return parser

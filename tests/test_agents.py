@@ -262,6 +262,33 @@ def test_evaluate_counts_failures_and_maintenance():
     assert math.isnan(saved.ci95[0]) and saved.to_dict()["ci95"] == [None, None]
 
 
+def test_batched_evaluation_equals_one_episode_at_a_time():
+    # the batched environment's episodes equal the single one's bit for bit, so every record must too:
+    # a stateful policy (Periodic's round), failures with forced replacements, an uneven last batch
+    from ea_gym.degradation import WearConfig
+
+    fast = {c: WearConfig(rate=(0.05, 0.2), arrival=(0.0, 10.0)) for c in COMPONENTS}
+    kwargs = dict(obs_mode="oracle", horizon=30, continue_after_failure=True, wear=fast)
+    single = lambda: gym.make("ea_gym/SpringMassDamper-v0", **kwargs)  # noqa: E731
+    vector = lambda n: gym.make_vec("ea_gym/SpringMassDamper-v0", num_envs=n, vectorization_mode="vector_entry_point", **kwargs)  # noqa: E731
+    seeds = [11, 12, 13, 14, 15]
+    results = {}
+    for name, policy in (("run", RunToFailure(ACTIONS)), ("periodic", Periodic(ACTIONS, 6.0)), ("oracle", Oracle(ACTIONS, 3.0, action="corrective"))):
+        one = evaluate(policy, single, seeds, progress=False)
+        batched = evaluate(policy, vector, seeds, progress=False, batch_size=2)
+        assert batched.seeds.tolist() == seeds and batched.policy == one.policy
+        for key, values in one.per_episode.items():
+            np.testing.assert_array_equal(batched.per_episode[key], values, err_msg=f"{name}: {key}")
+        assert one.per_episode["steps"].tolist() == [30] * 5
+        results[name] = one.per_episode
+    # every path was taken: failures, replacements while down (ignored orders), corrective steps
+    assert results["run"]["failures"].sum() > 0
+    assert results["periodic"]["replacements"].sum() > 0 and results["periodic"]["ignored_actions"].sum() == 0
+    assert results["oracle"]["corrective_steps"].sum() > 0
+    with pytest.raises(ValueError, match="batch_size"):
+        evaluate(RunToFailure(ACTIONS), vector, seeds, progress=False, batch_size=0)
+
+
 def test_tune_picks_the_cheapest_value():
     best, table = tune(lambda t: Oracle(ACTIONS, t), [math.inf, 15.0], _oracle_env, seeds=[3], progress=False)
     assert [row["parameter"] for row in table] == [math.inf, 15.0]

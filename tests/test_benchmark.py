@@ -122,7 +122,11 @@ def test_bad_arguments_are_refused_before_any_work(tmp_path):
 
 
 def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
+    import inspect
+
     calls = []
+    # the command line's default is the library's
+    library_default = inspect.signature(benchmark.run_benchmark).parameters["tune_episodes"].default
 
     def fake(episodes, seed, out, ppo, tune_episodes=10, progress=True):
         calls.append((episodes, seed, out, ppo, tune_episodes, progress))
@@ -133,7 +137,7 @@ def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
                  "--tune-episodes", "3", "--no-progress"]) == 0
     assert calls[-1] == (4, 2, tmp_path, tmp_path / "agent", 3, False)
     assert main(["benchmark", "--out", str(tmp_path), "--no-ppo"]) == 0
-    assert calls[-1][:5] == (100, 0, tmp_path, None, 30)
+    assert calls[-1][:5] == (100, 0, tmp_path, None, library_default)
     assert "oracle 1" in capsys.readouterr().out
     with pytest.raises(SystemExit):
         main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--ppo", "x"])
