@@ -14,6 +14,11 @@ The parameter estimates are positions in each component's safe range, and the no
 a different position for each (0.75 for the spring's (85, 105) N/m): a key ``wear`` adds each
 component's way covered from nominal toward the limit on its estimate's side (0 at nominal, 1 at the
 limit), the coordinate in which a corrective rule acts (``agents.policies.CorrectiveBand``).
+
+Standardising the EA by its mean and std puts a damper's 0.001 J and 0.01 J over a step at the same
+value, while how well a component's parameter can be estimated depends on exactly that (a weakly
+excited damper's estimate scatters three times as widely): with ``activity``, a key ``activity`` adds
+every element's EA on a log scale, log10(EA / 1 uJ) / 6 clipped to [0, 1] (1 uJ to 1 J).
 """
 
 from __future__ import annotations
@@ -29,6 +34,9 @@ from agents.policies import ActionMap, wear_fraction
 
 #: keys standardised by VecNormalize; the others are bounded and passed as they are
 NORMALISED_KEYS = ("ea", "residual", "time_since_maintenance")
+#: the ``activity`` key's scale: EA (J) from ACTIVITY_FLOOR over ACTIVITY_DECADES decades maps to [0, 1]
+ACTIVITY_FLOOR = 1e-6
+ACTIVITY_DECADES = 6.0
 
 
 def normalised_keys(observation_space: spaces.Dict) -> list[str]:
@@ -39,13 +47,16 @@ def normalised_keys(observation_space: spaces.Dict) -> list[str]:
 class LearnerView(VecEnvWrapper):
     """Replaces ``observation["rul"]`` (s, in [0, rul_max]) by log(1 + rul) / log(1 + rul_max) and adds
     ``observation["wear"]``, each component's way from nominal to the limit its estimate heads for,
-    clipped to [0, 2].
+    clipped to [0, 2], and with ``activity`` the key ``activity``: each element's EA on a log scale.
 
-    Observations without ``rul`` or ``parameter_estimate`` (obs_mode "sensors") pass unchanged.
+    Observations without ``rul`` or ``parameter_estimate`` (obs_mode "sensors") keep those keys as they are.
     """
 
-    def __init__(self, venv: VecEnv):
+    def __init__(self, venv: VecEnv, activity: bool = False):
         space: spaces.Dict = venv.observation_space
+        self.activity = bool(activity) and "ea" in space.spaces
+        if self.activity:
+            space = spaces.Dict({**space.spaces, "activity": spaces.Box(0.0, 1.0, space["ea"].shape, np.float32)})
         self.scale = math.log1p(float(np.max(space["rul"].high))) if "rul" in space.spaces else None
         if self.scale is not None:
             space = spaces.Dict({**space.spaces, "rul": spaces.Box(0.0, 1.0, space["rul"].shape, np.float32)})
@@ -62,11 +73,14 @@ class LearnerView(VecEnvWrapper):
             view["rul"] = (np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale).astype(np.float32)
         if self.nominal is not None and "parameter_estimate" in observation:
             view["wear"] = np.clip(wear_fraction(observation["parameter_estimate"], self.nominal), 0.0, 2.0).astype(np.float32)
+        if self.activity and "ea" in observation:
+            microjoules = np.maximum(np.asarray(observation["ea"], dtype=float), 1e-300) / ACTIVITY_FLOOR
+            view["activity"] = np.clip(np.log10(microjoules) / ACTIVITY_DECADES, 0.0, 1.0).astype(np.float32)
         return view
 
     def inverse(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The environment observation back from the learner's view (RUL in s again, no ``wear``)."""
-        restored = {key: value for key, value in observation.items() if key != "wear"}
+        """The environment observation back from the learner's view (RUL in s again, no ``wear`` or ``activity``)."""
+        restored = {key: value for key, value in observation.items() if key not in ("wear", "activity")}
         if self.scale is not None and "rul" in observation:
             restored["rul"] = np.expm1(observation["rul"].astype(float) * self.scale).astype(np.float32)
         return restored

@@ -147,6 +147,38 @@ def test_corrective_band_per_component_holds_each_component_in_its_own_band():
         CorrectiveBand(phm, band={"k": 0.8, "m": 1.2, "b": 0.4})
 
 
+def test_corrective_band_narrows_a_quiet_components_band():
+    elements = ("F", "m", "k", "b")
+    phm = ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS, elements)
+    policy = CorrectiveBand(phm, band={"k": 0.8, "m": 0.8, "b": 0.6}, quiet_band={"b": 0.3}, quiet_activity=0.003)
+
+    def suspect(component, position, activity):
+        o = obs(component)
+        o["parameter_estimate"][COMPONENTS.index(component)] = position
+        o["ea"][elements.index(component)] = activity
+        return o
+
+    # b at 0.3 is 40 % of the way down from 0.5: inside 0.6 while the damper is excited, beyond 0.3 while quiet
+    assert act(policy, suspect("b", 0.3, 0.01)) == 0
+    assert act(policy, suspect("b", 0.3, 0.002)) == CORRECT["b"]
+    # the spring has no quiet band: a quiet step leaves its 0.8 (0.9 is 60 % of the way up)
+    assert act(policy, suspect("k", 0.9, 0.0)) == 0
+    actions, _ = policy.predict(batch(suspect("b", 0.3, 0.01), suspect("b", 0.3, 0.0)))
+    assert actions.tolist() == [0, CORRECT["b"]]
+    without_ea = suspect("b", 0.3, 0.0)
+    del without_ea["ea"]
+    with pytest.raises(ValueError, match="'ea'"):
+        policy.predict(without_ea)
+    with pytest.raises(ValueError, match="elements"):
+        CorrectiveBand(ActionMap(MEANINGS, COMPONENTS, CLASSES, "phm", NOMINAL_POSITIONS), 0.5, quiet_band={"b": 0.3})
+    with pytest.raises(ValueError, match=r"\['c'\] are not among the fault classes"):
+        CorrectiveBand(phm, 0.5, quiet_band={"c": 0.3})
+    with pytest.raises(ValueError, match=r"quiet_band\['b'\] must be a fraction"):
+        CorrectiveBand(phm, 0.5, quiet_band={"b": 0.0})
+    with pytest.raises(ValueError, match="quiet_activity"):
+        CorrectiveBand(phm, 0.5, quiet_band={"b": 0.3}, quiet_activity=float("nan"))
+
+
 def test_batched_observations_give_one_action_per_env():
     policy = RulThreshold(ACTIONS, 10.0)
     o = batch(obs("k", 5.0), obs("none", 0.0), obs("b", 50.0), obs("m", 1.0), obs("m", 1.0, down=1.0))
@@ -308,7 +340,7 @@ def test_policies_run_under_sb3_evaluate_policy_on_a_vec_env():
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     venv = DummyVecEnv([_oracle_env, _oracle_env])
-    assert ActionMap.from_env(venv) == ActionMap(MEANINGS, COMPONENTS, CLASSES, "oracle", NOMINAL_POSITIONS)
+    assert ActionMap.from_env(venv) == ActionMap(MEANINGS, COMPONENTS, CLASSES, "oracle", NOMINAL_POSITIONS, ("F", "m", "k", "b"))
     for policy in (RunToFailure(venv), Periodic(venv, 5.0), Oracle(venv, 10.0)):
         rewards, lengths = evaluate_policy(policy, venv, n_eval_episodes=2, return_episode_rewards=True, warn=False)
         assert lengths == [20, 20] and all(r <= 0 for r in rewards)

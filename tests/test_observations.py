@@ -36,6 +36,18 @@ def test_wear_is_the_way_from_nominal_to_the_limit_on_the_estimates_side():
     assert "wear" not in env.inverse(view) and env.inverse(view)["parameter_estimate"] is estimate
 
 
+def test_activity_is_each_elements_ea_on_a_log_scale_from_a_microjoule_to_a_joule():
+    env = make_vec_env(TrainingRun(obs_mode="phm"), 2, 0)
+    assert env.observation_space["activity"].contains(env.reset()["activity"][0])
+    ea = np.array([[1e-6, 1e-3, 1.0, 10.0], [0.0, 1e-9, 0.003, 0.01]], np.float32)
+    view = env.forward({"ea": ea})
+    np.testing.assert_allclose(view["activity"], [[0.0, 0.5, 1.0, 1.0], [0.0, 0.0, (math.log10(0.003) + 6) / 6, 2 / 3]], rtol=1e-5)
+    assert "activity" not in env.inverse(view) and env.inverse(view)["ea"] is ea
+    # models trained without the key load with a view without it
+    old = make_vec_env(TrainingRun(obs_mode="phm", activity=False), 1, 0)
+    assert "activity" not in old.observation_space.spaces and "activity" not in old.reset()
+
+
 def test_discounted_returns_stop_at_episode_ends():
     rewards = np.array([[1.0], [2.0], [4.0], [8.0]])
     dones = np.array([[False], [True], [False], [False]])

@@ -44,7 +44,7 @@ class BondGraphMaintenanceEnv(gym.Env):
 
     ## Observation Space
 
-    A `Dict`, float32 arrays (E elements, C = R/C/I components, K = 1 + n classes):
+    A `Dict`, float32 arrays (E elements, in `env.unwrapped.elements`; C = R/C/I components; K = 1 + n classes):
 
     | key | shape | meaning |
     |---|---|---|
@@ -129,6 +129,7 @@ class BondGraphMaintenanceEnv(gym.Env):
         self.model = self.core.model
         self.render_mode = render_mode
         self.maintainable_components = self.core.components
+        self.elements = self.core.elements
         self.diagnosis_classes = self.core.classes
         self.action_meanings = self.core.action_meanings
         self.nominal_parameters = self.core.nominal_parameters

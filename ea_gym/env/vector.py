@@ -47,6 +47,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv):
         self.action_meanings = self.core.action_meanings
         self.diagnosis_classes = self.core.classes
         self.maintainable_components = self.core.components
+        self.elements = self.core.elements
         self.nominal_parameters = self.core.nominal_parameters
         self.safe_limits = self.core.safe_limits
         self.single_action_space = spaces.Discrete(len(self.action_meanings))
