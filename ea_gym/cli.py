@@ -199,7 +199,7 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--checkpoint-every", type=_positive_int, default=50_000, help="steps between checkpoints (default 50000)")
     train.add_argument("--eval-episodes", type=_positive_int, default=32, help="validation episodes per evaluation (default 32)")
     train.add_argument("--resume", metavar="CHECKPOINT", default=None, help="continue from a checkpoint .zip (or a model.zip)")
-    train.add_argument("--teacher", choices=["rul_threshold", "corrective_band", "oracle", "oracle_corrective", "periodic"], default=None,
+    train.add_argument("--teacher", choices=["rul_threshold", "corrective_band", "corrective_band_quiet", "oracle", "oracle_corrective", "periodic"], default=None,
                        help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
     train.add_argument("--teacher-parameter", type=float, default=None,
                        help="the teacher's RUL threshold or period in s, or its band for every component (default: agents.training.TEACHERS)")
