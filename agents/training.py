@@ -73,7 +73,7 @@ class TrainingRun:
 TEACHERS: dict[str, tuple[str, float | dict[str, float], dict[str, Any]]] = {
     "rul_threshold": ("RulThreshold", 10.0, {}),
     "corrective_band": ("CorrectiveBand", {"k": 0.8, "m": 0.8, "b": 0.4}, {}),
-    "corrective_band_quiet": ("CorrectiveBand", {"k": 0.8, "m": 0.8, "b": 0.6}, {"quiet_band": {"b": 0.3}}),
+    "corrective_band_quiet": ("CorrectiveBand", {"k": 0.8, "m": 0.8, "b": 0.5}, {"quiet_band": {"b": 0.3}}),
     "oracle": ("Oracle", 2.0, {}),
     "oracle_corrective": ("Oracle", 2.0, {"action": "corrective"}),
     "periodic": ("Periodic", 120.0, {}),
