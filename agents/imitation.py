@@ -6,6 +6,13 @@ diagnosed component shortly before its End of Life, is a rare event it seldom st
 from a rule's behaviour (kickstarting) puts the learner where that decision is made; reinforcement
 learning then improves on the rule.
 
+Cloning from the teacher's own steps alone (behaviour cloning) leaves the learner untrained where its
+small mistakes take it and the teacher never goes: a corrective step missed near a band's edge lets a
+component wear further than the teacher ever lets it. ``dagger_rounds`` runs DAgger (Ross, Gordon and
+Bagnell, 2011) after the cloning: each round the learner acts (its most likely action), the teacher
+labels every state the learner visits, the labelled steps join the aggregate, and the policy is fitted
+again on all of it.
+
 ``clone`` runs the teacher on the training environments, then fits the policy's action distribution
 to the teacher's actions (cross-entropy) and its value function to the discounted returns of the
 normalised rewards. The maintenance actions are rare (about 1 step in 200) but not weighted up: the
@@ -17,7 +24,7 @@ unweighted, on 100,000 steps of the RUL-threshold rule).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,13 +38,17 @@ class CloningResult:
     """What behaviour cloning did.
 
     Attributes:
-        steps: environment steps run by the teacher.
+        steps: environment steps collected in all (the teacher's, then each DAgger round's).
         action_counts: how often the teacher chose each action.
         accuracy: share of the collected steps where the cloned policy's most likely action is the teacher's.
         maintenance_recall: the same, over the steps where the teacher chose a maintenance action (None
             if it chose none).
         teacher_mean_return: the teacher's mean episode return (raw rewards) over the completed episodes
             (None if none completed).
+        rounds: one entry per DAgger round, measured on the states the learner visited before that
+            round's fit: ``agreement`` (share of its actions the teacher would have taken),
+            ``maintenance_recall`` (of the teacher's maintenance labels there), ``mean_return`` (the
+            learner's mean episode return, raw rewards, None if no episode completed).
     """
 
     steps: int
@@ -45,27 +56,41 @@ class CloningResult:
     accuracy: float
     maintenance_recall: float | None
     teacher_mean_return: float | None
+    rounds: list[dict[str, float | None]] = field(default_factory=list)
 
 
-def collect(env: VecNormalize, teacher: Any, steps: int, restore: Callable[[dict], dict] = lambda o: o) -> dict[str, np.ndarray]:
-    """Run ``teacher`` (SB3 ``predict`` on environment observations) for ``steps`` environment steps in total.
+def collect(
+    env: VecNormalize,
+    teacher: Any,
+    steps: int,
+    restore: Callable[[dict], dict] = lambda o: o,
+    learner: OnPolicyAlgorithm | None = None,
+) -> dict[str, np.ndarray]:
+    """Run ``steps`` environment steps in total, labelled with ``teacher``'s actions (SB3 ``predict`` on
+    environment observations).
 
-    The normalisation statistics of ``env`` are updated as the steps go; the unnormalised observations
-    and rewards are returned so that they can be normalised afterwards with the final statistics.
-    ``restore`` turns an unnormalised observation of ``env`` back into the environment's own (see
-    ``agents.observations.LearnerView``), which is what the teacher reads.
+    The teacher acts, or with a ``learner`` (an SB3 model on ``env``'s normalised observations) the
+    learner acts and the teacher only labels the states it visits (a DAgger round): ``actions`` are
+    then the teacher's labels and ``taken`` the learner's actions. The normalisation statistics of
+    ``env`` are updated as the steps go; the unnormalised observations and rewards are returned so that
+    they can be normalised afterwards with the final statistics. ``restore`` turns an unnormalised
+    observation of ``env`` back into the environment's own (see ``agents.observations.LearnerView``),
+    which is what the teacher reads.
     """
     n = env.num_envs
     env.reset()
     starts = np.ones(n, dtype=bool)
     state = None
-    observations, actions, rewards, dones, returns = [], [], [], [], []
+    observations, actions, taken, rewards, dones, returns = [], [], [], [], [], []
     for _ in range(max(steps // n, 1)):
         raw = env.get_original_obs()
-        action, state = teacher.predict(restore(raw), state=state, episode_start=starts, deterministic=True)
+        label, state = teacher.predict(restore(raw), state=state, episode_start=starts, deterministic=True)
+        label = np.asarray(label)
+        action = label if learner is None else learner.predict(env.normalize_obs(raw), deterministic=True)[0]
         _, _, done, infos = env.step(np.asarray(action))
         observations.append({key: value.copy() for key, value in raw.items()})
-        actions.append(np.asarray(action).copy())
+        actions.append(label.copy())
+        taken.append(np.asarray(action).copy())
         rewards.append(env.get_original_reward().copy())
         dones.append(done.copy())
         returns += [info["episode"]["r"] for info in infos if "episode" in info]
@@ -73,6 +98,7 @@ def collect(env: VecNormalize, teacher: Any, steps: int, restore: Callable[[dict
     return {
         "observations": {key: np.stack([o[key] for o in observations]) for key in observations[0]},
         "actions": np.stack(actions),
+        "taken": np.stack(taken),
         "rewards": np.stack(rewards),
         "dones": np.stack(dones),
         "episode_returns": np.array(returns),
@@ -99,33 +125,79 @@ def clone(
     learning_rate: float = 1e-3,
     restore: Callable[[dict], dict] = lambda o: o,
     rng: np.random.Generator | None = None,
+    dagger_rounds: int = 0,
 ) -> CloningResult:
-    """Fit ``model``'s policy to ``teacher``'s actions and its value function to the teacher's returns.
+    """Fit ``model``'s policy to ``teacher``'s actions and its value function to the returns, then
+    run ``dagger_rounds`` rounds of DAgger (``steps`` more labelled steps each, the policy refitted on
+    the aggregate for ``epochs`` passes).
 
     Args:
         model: a PPO or A2C model on ``env`` (MultiInputPolicy).
-        env: the training environments, normalised (their statistics are updated by the teacher's run).
+        env: the training environments, normalised (their statistics are updated by every collection).
         teacher: a rule policy of ``agents.policies`` built for ``env``'s obs_mode.
-        steps: environment steps to collect.
-        epochs: passes over the collected steps.
+        steps: environment steps to collect, for the cloning and again for each DAgger round.
+        epochs: passes over the collected steps at each fit.
         batch_size: samples per gradient step.
-        learning_rate: of the cloning's own Adam optimizer (the model's is tuned for fine-tuning).
+        learning_rate: of the fitting's own Adam optimizer (the model's is tuned for fine-tuning).
         restore: see ``collect``.
         rng: shuffles the samples (default: seeded from the model's seed).
+        dagger_rounds: DAgger rounds after the cloning, >= 0.
     """
+    if not (isinstance(dagger_rounds, int) and dagger_rounds >= 0):
+        raise ValueError(f"dagger_rounds must be an integer >= 0, got {dagger_rounds!r}")
     rng = rng if rng is not None else np.random.default_rng(model.seed)
-    data = collect(env, teacher, steps, restore)
-    T, n = data["actions"].shape
-    flat = {key: value.reshape((T * n,) + value.shape[2:]) for key, value in data["observations"].items()}
-    observations = env.normalize_obs(flat)
-    actions = data["actions"].reshape(-1)
-    value_targets = discounted_returns(env.normalize_reward(data["rewards"]), data["dones"], model.gamma).reshape(-1)
-    counts = np.bincount(actions, minlength=model.action_space.n)
-
     policy = model.policy
-    device = policy.device
-    as_tensor = lambda x: th.as_tensor(x, device=device)  # noqa: E731
     optimizer = th.optim.Adam(policy.parameters(), lr=learning_rate)
+    batches = [collect(env, teacher, steps, restore)]
+    teacher_returns = batches[0]["episode_returns"]
+    rounds = []
+    for round_ in range(dagger_rounds + 1):
+        if round_ > 0:
+            visited = collect(env, teacher, steps, restore, learner=model)
+            labels, taken = visited["actions"].reshape(-1), visited["taken"].reshape(-1)
+            rounds.append({
+                "agreement": float(np.mean(labels == taken)),
+                "maintenance_recall": float(np.mean(taken[labels > 0] == labels[labels > 0])) if np.any(labels > 0) else None,
+                "mean_return": float(np.mean(visited["episode_returns"])) if len(visited["episode_returns"]) else None,
+            })
+            batches.append(visited)
+        # normalised with the latest statistics, so that every sample matches what the policy will see
+        observations, actions, value_targets = _samples(batches, env, model.gamma)
+        _fit(policy, optimizer, observations, actions, value_targets, epochs, batch_size, model.vf_coef, model.max_grad_norm, rng)
+
+    predicted = _most_likely(policy, observations)
+    maintenance = actions > 0
+    return CloningResult(
+        steps=int(len(actions)),
+        action_counts=np.bincount(actions, minlength=model.action_space.n).tolist(),
+        accuracy=float(np.mean(predicted == actions)),
+        maintenance_recall=float(np.mean(predicted[maintenance] == actions[maintenance])) if maintenance.any() else None,
+        teacher_mean_return=float(np.mean(teacher_returns)) if len(teacher_returns) else None,
+        rounds=rounds,
+    )
+
+
+def _samples(batches: list[dict[str, Any]], env: VecNormalize, gamma: float) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """The collected steps of every batch, flattened: normalised observations, the teacher's actions and
+    the value targets (discounted returns of the normalised rewards along each batch's trajectories)."""
+    observations: dict[str, list[np.ndarray]] = {}
+    actions, targets = [], []
+    for data in batches:
+        T, n = data["actions"].shape
+        flat = {key: value.reshape((T * n,) + value.shape[2:]) for key, value in data["observations"].items()}
+        for key, value in env.normalize_obs(flat).items():
+            observations.setdefault(key, []).append(value)
+        actions.append(data["actions"].reshape(-1))
+        targets.append(discounted_returns(env.normalize_reward(data["rewards"]), data["dones"], gamma).reshape(-1))
+    return {key: np.concatenate(parts) for key, parts in observations.items()}, np.concatenate(actions).astype(np.int64), np.concatenate(targets)
+
+
+def _fit(
+    policy: Any, optimizer: th.optim.Optimizer, observations: dict[str, np.ndarray], actions: np.ndarray, value_targets: np.ndarray,
+    epochs: int, batch_size: int, vf_coef: float, max_grad_norm: float, rng: np.random.Generator,
+) -> None:
+    """Cross-entropy on the actions plus ``vf_coef`` x the value function's squared error, ``epochs`` passes."""
+    as_tensor = lambda x: th.as_tensor(x, device=policy.device)  # noqa: E731
     policy.set_training_mode(True)
     for _ in range(epochs):
         order = rng.permutation(len(actions))
@@ -135,24 +207,20 @@ def clone(
             values, log_prob, _ = policy.evaluate_actions(obs, as_tensor(actions[rows]))
             policy_loss = -log_prob.mean()
             value_loss = th.nn.functional.mse_loss(values.flatten(), as_tensor(value_targets[rows]).float())
-            loss = policy_loss + model.vf_coef * value_loss
+            loss = policy_loss + vf_coef * value_loss
             optimizer.zero_grad()
             loss.backward()
-            th.nn.utils.clip_grad_norm_(policy.parameters(), model.max_grad_norm)
+            th.nn.utils.clip_grad_norm_(policy.parameters(), max_grad_norm)
             optimizer.step()
     policy.set_training_mode(False)
 
+
+def _most_likely(policy: Any, observations: dict[str, np.ndarray]) -> np.ndarray:
+    """The policy's most likely action for every sample."""
+    rows = len(next(iter(observations.values())))
     with th.no_grad():
-        predicted = np.concatenate([
-            policy.get_distribution({key: as_tensor(value[i : i + 4096]) for key, value in observations.items()})
+        return np.concatenate([
+            policy.get_distribution({key: th.as_tensor(value[i : i + 4096], device=policy.device) for key, value in observations.items()})
             .distribution.probs.argmax(-1).cpu().numpy()
-            for i in range(0, len(actions), 4096)
+            for i in range(0, rows, 4096)
         ])
-    maintenance = actions > 0
-    return CloningResult(
-        steps=int(T * n),
-        action_counts=counts.tolist(),
-        accuracy=float(np.mean(predicted == actions)),
-        maintenance_recall=float(np.mean(predicted[maintenance] == actions[maintenance])) if maintenance.any() else None,
-        teacher_mean_return=float(np.mean(data["episode_returns"])) if len(data["episode_returns"]) else None,
-    )

@@ -58,7 +58,8 @@ class TrainingRun:
     hyperparameters: dict[str, Any] = field(default_factory=dict)
     teacher: str | None = None  # a rule of TEACHERS cloned before learning (PPO and A2C only)
     teacher_parameter: float | dict[str, float] | None = None  # its threshold or period (s) or band(s); None: TEACHERS' default
-    teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning
+    teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning (and each DAgger round)
+    dagger_rounds: int = 0  # DAgger rounds after the cloning: the learner acts, the teacher labels (agents.imitation)
     activity: bool = True  # the learner also sees each element's EA on a log scale (agents.observations); runs saved without the field did not
 
 
@@ -139,6 +140,8 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
         raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {run.algo!r}")
     if run.timesteps <= 0 or run.n_envs <= 0:
         raise ValueError(f"timesteps and n_envs must be positive, got {run.timesteps} and {run.n_envs}")
+    if run.dagger_rounds and run.teacher is None:
+        raise ValueError(f"dagger_rounds ({run.dagger_rounds}) needs a teacher to label the learner's steps")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     algorithm = ALGORITHMS[run.algo]
@@ -161,7 +164,7 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
         if run.algo == "dqn":
             raise ValueError("a teacher can only be cloned into PPO or A2C (an actor-critic), not DQN")
         with single_threaded_torch():
-            cloning = asdict(clone(model, env, make_teacher(run, env), run.teacher_steps, restore=env.venv.inverse))
+            cloning = asdict(clone(model, env, make_teacher(run, env), run.teacher_steps, restore=env.venv.inverse, dagger_rounds=run.dagger_rounds))
             # the cloned policy is a candidate too: reinforcement learning must beat it to replace it
             rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
         cloning["validation_reward"] = float(np.mean(rewards))

@@ -77,6 +77,7 @@ def _train(args: argparse.Namespace) -> int:
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed,
         vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
+        dagger_rounds=args.dagger_rounds,
     )
     summary = train(run, Path(args.out), resume=None if args.resume is None else Path(args.resume), progress_bar=not args.no_progress)
     print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
@@ -107,6 +108,13 @@ def _positive_int(text: str) -> int:
     value = int(text)
     if value <= 0:
         raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
+    return value
+
+
+def _non_negative_int(text: str) -> int:
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text}")
     return value
 
 
@@ -204,6 +212,9 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument("--teacher-parameter", type=float, default=None,
                        help="the teacher's RUL threshold or period in s, or its band for every component (default: agents.training.TEACHERS)")
     train.add_argument("--teacher-steps", type=_positive_int, default=100_000, help="environment steps the teacher runs (default 100000)")
+    train.add_argument("--dagger-rounds", type=_non_negative_int, default=0,
+                       help="DAgger rounds after the cloning: the learner acts, the teacher labels, the policy is refitted "
+                            "on all labelled steps (default 0; needs --teacher)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     train.set_defaults(run=_train)
 

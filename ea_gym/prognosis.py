@@ -5,8 +5,8 @@ the isolated parameter are simulated from the measured state at t0 - c under the
 the smoothing context), their signals go through the same denoising and nominal laws as the
 measurements, and the candidate whose components' EA and energy balance over [t0, t1] match the
 measured ones best (in relative least squares) is refined on finer grids, then to the vertex of the
-parabola through it and its neighbours. This uses eq 10's ingredients without linearising
-them: dS/dphi is the model's own response to phi, dEA/dS the component's constitutive law. It is
+parabola through it and its neighbours (past the grid's end by up to ``EstimatorConfig.reach``
+steps). This uses eq 10's ingredients without linearising them: dS/dphi is the model's own response to phi, dEA/dS the component's constitutive law. It is
 preferred to integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors
 do not accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the
 paper names as its limitation.
@@ -81,6 +81,13 @@ class EstimatorConfig:
         warm_grid: candidates per pass from a warm start (the previous value and one either side: the
             parabola through their costs gives the estimate).
         warm_passes: passes from a warm start.
+        reach: how many grid steps beyond the outer candidates the estimate may go, when the best
+            candidate is an outer one and the cost is convex there: the vertex of the parabola through
+            the three outer candidates (a Newton step). A weakly identifiable parameter's cost is flat
+            and noisy around its previous estimate; stopping at the best candidate then makes the
+            estimate crawl one grid step per window behind the parameter. On the spring-mass-damper
+            (300 episodes, corrective band policy) a reach of 1 cut the light damper's failures from 5 to
+            2 and the episode cost from 97.7 to 94.4; 2 gave 3 failures, 96.7.
         median: length of the (causal) median filter over successive estimates (paper 4.4).
         balance_share: the energy-balance mismatch is relative to the dissipators' EA plus this share of
             all the components' EA: the balance is where a dissipator's fault shows, but its end points
@@ -94,8 +101,13 @@ class EstimatorConfig:
     warm_span: float = 0.05
     warm_grid: int = 3
     warm_passes: int = 1
+    reach: float = 1.0
     median: int = 3
     balance_share: float = 0.2
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.reach) and self.reach >= 0):
+            raise ValueError(f"estimator.reach must be a finite number of grid steps >= 0, got {self.reach!r}")
 
 
 class EAParameterEstimator:
@@ -218,20 +230,26 @@ class EAParameterEstimator:
         """Grid search refined ``passes`` times; each pass narrows to one step either side of the best.
 
         Returns the vertex of the parabola through the last pass's best candidate and its neighbours
-        (the cost is smooth in the parameter near its minimum), and the best candidate's cost."""
+        (the cost is smooth in the parameter near its minimum), or, when the best is an outer candidate,
+        through the three outer ones, at most ``config.reach`` steps beyond it; the best candidate
+        itself where the cost is not convex. Also returns the best candidate's cost."""
         rows = np.arange(len(grids))
         size = grids.shape[1]
         for _ in range(passes):
+            searched = grids
             cost = self.cost(self._candidate_signature(parameter_index, grids, start, u, du), measured)
             step = grids[:, 1] - grids[:, 0]
             best = np.argmin(cost, axis=1)
-            centre = grids[rows, best]
-            grids = np.maximum(centre[:, None] + np.linspace(-1.0, 1.0, size) * step[:, None], 1e-6 * grids[:, -1:])
-        left, right = cost[rows, np.maximum(best - 1, 0)], cost[rows, np.minimum(best + 1, size - 1)]
-        curvature = left - 2.0 * cost[rows, best] + right
-        inside = (best > 0) & (best < size - 1) & (curvature > 0)
-        shift = np.where(inside, 0.5 * (left - right) / np.where(inside, curvature, 1.0), 0.0)
-        return np.maximum(centre + shift * step, 1e-6 * grids[:, -1]), cost[rows, best]
+            grids = np.maximum(grids[rows, best][:, None] + np.linspace(-1.0, 1.0, size) * step[:, None], 1e-6 * grids[:, -1:])
+        middle = np.clip(best, 1, size - 2)
+        left, right = cost[rows, middle - 1], cost[rows, middle + 1]
+        curvature = left - 2.0 * cost[rows, middle] + right
+        convex = curvature > 0
+        # in steps from the middle candidate: within half a step of an inner best, up to ``reach`` steps past an outer one
+        farthest = 1.0 + self.config.reach
+        shift = np.clip(0.5 * (left - right) / np.where(convex, curvature, 1.0), -farthest, farthest)
+        estimate = np.where(convex, searched[rows, middle] + shift * step, searched[rows, best])
+        return np.maximum(estimate, 1e-6 * grids[:, -1]), cost[rows, best]
 
 
 @dataclass(frozen=True)

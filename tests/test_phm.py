@@ -83,7 +83,10 @@ def test_paper_fault_end_of_life_within_3_s_after_30_s_and_alpha_lambda(paper_ru
 @pytest.mark.parametrize(
     "parameter, profile, bound",
     [
-        ("b", [[0, 0.5], [5, 0.5], [105, 0.6]], 0.05),  # the damper wears: +0.001 N s/m per s
+        # the damper wears: +0.001 N s/m per s. Its estimate follows a fast change within a window or two
+        # (EstimatorConfig.reach) at the price of a noisier single window: 0.052 N s/m off at worst here,
+        # 0.011 in the median (0.042 and 0.010 when it stopped at the grid's end)
+        ("b", [[0, 0.5], [5, 0.5], [105, 0.6]], 0.06),
         ("m", [[0, 10.0], [5, 10.0], [105, 10.9]], 0.15),  # mass builds up: +9 g per s
     ],
 )

@@ -90,3 +90,52 @@ def test_teachers_are_the_named_rules_with_their_settings():
     assert isinstance(corrective, Oracle) and corrective.action == "corrective" and corrective.threshold == 3.0
     band = make_teacher(TrainingRun(obs_mode="oracle", teacher="corrective_band"), env)
     assert isinstance(band, CorrectiveBand) and band.band == TEACHERS["corrective_band"][1]
+
+
+class _Always:
+    """A stand-in learner that always gives one action."""
+
+    def __init__(self, action: int):
+        self.action = action
+
+    def predict(self, observation, deterministic=True):
+        return np.full(len(observation["time_since_maintenance"]), self.action), None
+
+
+def test_a_dagger_collection_steps_the_learner_and_records_the_teachers_labels():
+    from agents.imitation import collect
+    from agents.policies import RunToFailure
+    from agents.training import normalize
+
+    run = TrainingRun(obs_mode="oracle", n_envs=2, env_kwargs={"horizon": 20})
+    env = normalize(make_vec_env(run, 2, seed=0))
+    data = collect(env, RunToFailure(), 40, restore=env.venv.inverse, learner=_Always(1))
+    assert data["actions"].shape == data["taken"].shape == (20, 2)
+    assert np.all(data["actions"] == 0)  # the teacher never maintains
+    assert np.all(data["taken"] == 1)
+    # the learner's corrective action on k was carried out at every step: each costs 1 (downtime after a failure 4)
+    assert np.all(data["rewards"] <= -1.0)
+    teacher_only = collect(env, RunToFailure(), 40, restore=env.venv.inverse)
+    assert np.all(teacher_only["taken"] == 0) and np.all(teacher_only["rewards"] == 0.0)
+
+
+def test_dagger_rounds_label_the_learners_states_and_aggregate_them(tmp_path):
+    run = TrainingRun(algo="ppo", timesteps=64, obs_mode="oracle", n_envs=4, eval_every=64, eval_episodes=1,
+                      checkpoint_every=64, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 16, "batch_size": 64},
+                      teacher="oracle", teacher_steps=1024, dagger_rounds=2)
+    cloning = train(run, tmp_path, progress_bar=False)["cloning"]
+    assert cloning["steps"] == sum(cloning["action_counts"]) == 3 * 1024  # the teacher's steps, then two rounds'
+    assert len(cloning["rounds"]) == 2
+    for entry in cloning["rounds"]:
+        assert 0.0 <= entry["agreement"] <= 1.0
+    # after the cloning the learner already mostly does what the oracle would
+    assert cloning["rounds"][0]["agreement"] >= 0.9
+    assert cloning["accuracy"] >= 0.9
+    with pytest.raises(ValueError, match="needs a teacher"):
+        train(TrainingRun(timesteps=64, n_envs=2, dagger_rounds=1, hyperparameters={"n_steps": 32, "batch_size": 64}), tmp_path / "x", progress_bar=False)
+
+
+def test_train_command_rejects_negative_dagger_rounds(capsys):
+    with pytest.raises(SystemExit):
+        main(["train", "--dagger-rounds", "-1", "--out", "x"])
+    assert "expected an integer >= 0" in capsys.readouterr().err
