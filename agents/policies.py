@@ -394,11 +394,11 @@ class CorrectiveBand(RulePolicy):
 
     One band for every component, or one per component: a component whose estimate scatters widely
     needs a wider margin to its limit (on the spring-mass-damper at 1 % noise, the light damper's
-    estimate is off by 9 % of its safe range (rms), the spring's and the mass's by 1.4 and 1.8 %).
+    estimate is off by 12 % of its safe range (rms), the spring's and the mass's by 1.7 and 1.8 %).
 
-    A component's estimate is only as good as the excitation it had: the damper's estimate error is 16 %
+    A component's estimate is only as good as the excitation it had: the damper's estimate error is 18 %
     of its safe range (rms) in the fifth of steps where its EA is lowest (below 0.003 J per 1-s step) and
-    5 % in the fifth where it is highest. ``quiet_band`` holds a component in a narrower band while its
+    6 % in the fifth where it is highest. ``quiet_band`` holds a component in a narrower band while its
     EA over the last step is below ``quiet_activity``, so that the wide band suits the well excited
     steps alone.
 
