@@ -211,7 +211,7 @@ def build_parser() -> argparse.ArgumentParser:
                        help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
     train.add_argument("--teacher-parameter", type=float, default=None,
                        help="the teacher's RUL threshold or period in s, or its band for every component (default: agents.training.TEACHERS)")
-    train.add_argument("--teacher-steps", type=_positive_int, default=100_000, help="environment steps the teacher runs (default 100000)")
+    train.add_argument("--teacher-steps", type=_positive_int, default=100_000, help="environment steps the teacher runs, and each DAgger round (default 100000)")
     train.add_argument("--dagger-rounds", type=_non_negative_int, default=0,
                        help="DAgger rounds after the cloning: the learner acts, the teacher labels, the policy is refitted "
                             "on all labelled steps (default 0; needs --teacher)")
