@@ -14,6 +14,7 @@ from ea_gym.phm import PHMConfig, balance_chi_square, build_chain, measure, run_
 from ea_gym.plant import run_model
 from ea_gym.prognosis import (
     EAParameterEstimator,
+    EstimatorConfig,
     ExtrapolationConfig,
     predict_end_of_life,
 )
@@ -208,25 +209,27 @@ def test_energy_balance_deviation_points_at_a_stiffness_fault_without_noise():
     assert np.abs(beta[[0, 2]]).max() <= 0.5 * abs(beta[1])
 
 
-def test_ea_inversion_recovers_a_constant_parameter_and_only_the_true_hypothesis_fits():
+def _noise_free_window(k, config=EstimatorConfig()):
+    """An estimator and one 6-s noise-free window of the spring-mass-damper with spring ``k`` (N/m):
+    (estimator, start state, load, load rate, measured signature), each with a leading axis of 1."""
     t = np.arange(601) * 0.01
-    scenario = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=6.0)
-    load = scenario.make_load()
-    theta = MODEL.parameter_vector({"k": 92.0})
-    x0 = np.array([0.3, 0.12])
-    trajectory = run_model(MODEL, t, load, lambda s: np.broadcast_to(theta, s.shape + theta.shape), x0)
+    load = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=6.0).make_load()
+    theta = MODEL.parameter_vector({"k": k})
+    trajectory = run_model(MODEL, t, load, lambda s: np.broadcast_to(theta, s.shape + theta.shape), np.array([0.3, 0.12]))
     monitor = Monitor(MODEL, 0.01)
     signals = measure(monitor, theta[None], trajectory.states[None], 0.0, np.random.default_rng(0))
-    estimator = EAParameterEstimator(monitor)
+    estimator = EAParameterEstimator(monitor, config)
     c = monitor.config.smoothing
-    window = np.concatenate([signals, load.value(t)[None, None]], axis=1)[..., c:]
-    power, _ = monitor.powers(window, c)
-    measured = estimator.signature(power)
+    power, _ = monitor.powers(np.concatenate([signals, load.value(t)[None, None]], axis=1)[..., c:], c)
     start = monitor.state_filter(signals[..., : 2 * c + 1])[..., c]
+    return estimator, start, load.value(t)[None, c:], load.derivative(t)[None, c:], estimator.signature(power)
+
+
+def test_ea_inversion_recovers_a_constant_parameter_and_only_the_true_hypothesis_fits():
+    estimator, start, u, du, measured = _noise_free_window(92.0)
     hypotheses = np.arange(3)  # m, k, b: each as if it alone had changed
     values, fit = estimator.estimate(
-        hypotheses, np.repeat(start, 3, 0), np.repeat(load.value(t)[None, c:], 3, 0),
-        np.repeat(load.derivative(t)[None, c:], 3, 0), np.repeat(measured, 3, 0),
+        hypotheses, np.repeat(start, 3, 0), np.repeat(u, 3, 0), np.repeat(du, 3, 0), np.repeat(measured, 3, 0),
     )
     assert values[1] == pytest.approx(92.0, abs=0.05)
     # the true hypothesis explains the EA; neither m nor b alone can (that is what isolation by fit uses)
@@ -234,11 +237,29 @@ def test_ea_inversion_recovers_a_constant_parameter_and_only_the_true_hypothesis
     # the cost of a given model, simulated and processed like the candidates: the true k explains the EA
     # (noise-free: better than the search's best candidate); the nominal model ("no fault") does not
     true_cost, nominal_cost = estimator.fit_cost(
-        np.array([1, 1]), np.array([92.0, 100.0]), np.repeat(start, 2, 0), np.repeat(load.value(t)[None, c:], 2, 0),
-        np.repeat(load.derivative(t)[None, c:], 2, 0), np.repeat(measured, 2, 0),
+        np.array([1, 1]), np.array([92.0, 100.0]), np.repeat(start, 2, 0), np.repeat(u, 2, 0), np.repeat(du, 2, 0),
+        np.repeat(measured, 2, 0),
     )
     assert true_cost <= fit[1]
     assert nominal_cost > 1000 * fit[1] and nominal_cost >= min(fit[0], fit[2])
+
+
+@pytest.mark.parametrize("reach", [0.0, 1.0, 2.0])
+def test_a_warm_estimate_goes_past_its_outer_candidate_by_at_most_its_reach(reach):
+    # the warm grid is the previous estimate and one step (warm_span x 20 N/m = 1 N/m) either side
+    estimator, start, u, du, measured = _noise_free_window(92.0, EstimatorConfig(reach=reach))
+    step = estimator.config.warm_span * 20.0
+    inner, _ = estimator.estimate(np.array([1]), start, u, du, measured, previous=np.array([92.3]))
+    assert inner[0] == pytest.approx(92.0, abs=0.05)  # the truth inside the grid: the parabola's vertex
+    for previous in (93.5, 95.0):  # the truth 1.5 and 3 steps below: the best candidate is the lower one
+        value, _ = estimator.estimate(np.array([1]), start, u, du, measured, previous=np.array([previous]))
+        farthest = previous - (1.0 + reach) * step
+        # the vertex of the parabola through the three candidates is near the truth (within a quarter
+        # step from 1.5 steps away: the cost is not quite quadratic there); the reach caps the way there
+        assert value[0] == pytest.approx(max(92.0, farthest), abs=0.25)
+        assert value[0] >= farthest - 1e-9
+    with pytest.raises(ValueError, match="estimator.reach"):
+        EstimatorConfig(reach=-1.0)
 
 
 def test_end_of_life_of_a_noise_free_linear_trend_is_exact_and_inside_its_interval():
