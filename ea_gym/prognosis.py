@@ -6,10 +6,10 @@ the smoothing context), their signals go through the same denoising and nominal 
 measurements, and the candidate whose components' EA and energy balance over [t0, t1] match the
 measured ones best (in relative least squares) is refined on finer grids, then to the vertex of the
 parabola through it and its neighbours (past the grid's end by up to ``EstimatorConfig.reach``
-steps). This uses eq 10's ingredients without linearising them: dS/dphi is the model's own response to phi, dEA/dS the component's constitutive law. It is
-preferred to integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors
-do not accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the
-paper names as its limitation.
+steps). This uses eq 10's ingredients without linearising them: dS/dphi is the model's own response
+to phi, dEA/dS the component's constitutive law. It is preferred to integrating the rate of eq 15
+(eq 16) because each window's estimate is absolute: errors do not accumulate, and it works for storage
+elements (C, I) as well as for dissipators (R), which the paper names as its limitation.
 
 The End of Life is where a polynomial fitted to the recent estimates (degree 1 by default) reaches a
 safe limit; the interval comes from the fit's covariance (the times where the confidence band of the
