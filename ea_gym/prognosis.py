@@ -106,6 +106,9 @@ class EstimatorConfig:
     balance_share: float = 0.2
 
     def __post_init__(self) -> None:
+        for name in ("grid", "warm_grid"):  # the parabola through the best candidate needs two neighbours
+            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 3):
+                raise ValueError(f"estimator.{name} must be an integer >= 3 (candidates per pass), got {getattr(self, name)!r}")
         if not (math.isfinite(self.reach) and self.reach >= 0):
             raise ValueError(f"estimator.reach must be a finite number of grid steps >= 0, got {self.reach!r}")
 

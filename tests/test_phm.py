@@ -260,6 +260,8 @@ def test_a_warm_estimate_goes_past_its_outer_candidate_by_at_most_its_reach(reac
         assert value[0] >= farthest - 1e-9
     with pytest.raises(ValueError, match="estimator.reach"):
         EstimatorConfig(reach=-1.0)
+    with pytest.raises(ValueError, match="estimator.warm_grid"):
+        EstimatorConfig(warm_grid=2)
 
 
 def test_end_of_life_of_a_noise_free_linear_trend_is_exact_and_inside_its_interval():
