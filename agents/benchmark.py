@@ -56,6 +56,8 @@ import numpy as np
 
 from agents.evaluation import COST_ITEMS, EpisodeStats, evaluate, mean_ci95, tune
 from agents.policies import ActionMap, CorrectiveBand, Oracle, Periodic, RulThreshold, RunToFailure
+from ea_gym.env import ENV_ID
+from ea_gym.files import finite_or_none, json_ready
 
 __all__ = [
     "ENV_ID", "PERIODS", "THRESHOLDS", "BANDS", "QUIET_BAND", "ACTIONS", "DEFAULT_GRIDS", "EVALUATION_SEED_BASE", "EVALUATION_SEED_STRIDE",
@@ -63,7 +65,6 @@ __all__ = [
     "plot_cost_distribution", "plot_timelines", "markdown", "run_benchmark",
 ]
 
-ENV_ID = "ea_gym/SpringMassDamper-v0"
 #: Periodic's grid of periods (s), the RUL thresholds (s) of RulThreshold and Oracle, CorrectiveBand's bands:
 #: the spring's and the mass's band (their estimates are good to 1-2 % of their safe ranges) x the light
 #: damper's while it is well excited (6-12 %: it needs the wider margin); while it is quiet, QUIET_BAND.
@@ -145,25 +146,6 @@ def paired(a: EpisodeStats, b: EpisodeStats) -> dict[str, Any]:
     return {"mean": mean, "ci95": [low, high], "clearly_more": bool(low > 0), "clearly_less": bool(high < 0)}
 
 
-def _json_number(value: Any) -> Any:
-    if isinstance(value, (float, np.floating)):
-        return float(value) if math.isfinite(value) else None
-    return value
-
-
-def _json_ready(value: Any) -> Any:
-    """NaN and inf as None, numpy scalars as Python numbers, tuples as lists (recursively)."""
-    if isinstance(value, Mapping):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, (np.integer,)):
-        return int(value)
-    if isinstance(value, (np.bool_,)):
-        return bool(value)
-    return _json_number(value)
-
-
 def fmt_ci(row: Mapping[str, Any]) -> str:
     """``mean [low, high]`` of a row with ``mean_cost`` and ``ci95`` (just the mean when the interval is None/NaN)."""
     low, high = row["ci95"]
@@ -237,7 +219,7 @@ def record_timeline(policy: Any, obs_mode: str, seed: int, env_kwargs: Mapping[s
             record["component"].append(component)
             record["true_position"].append((info["true_parameters"][component] - low) / (high - low))
             record["estimated_position"].append(float(phm_observation["parameter_estimate"][components.index(component)]))
-            record["true_rul"].append(_json_number(float(info["true_rul"])))
+            record["true_rul"].append(finite_or_none(float(info["true_rul"])))
             record["rul"].append([float(v) for v in phm_observation["rul"]])
             record["down"].append(bool(observation["maintenance_in_progress"][0] > 0.5))
 
@@ -276,10 +258,7 @@ def record_timeline(policy: Any, obs_mode: str, seed: int, env_kwargs: Mapping[s
 
 
 def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ea_gym.pyplot import plt
 
     return plt
 
@@ -680,7 +659,7 @@ def run_benchmark(
     try:
         actions = ActionMap.from_env(probe)
         base = probe.unwrapped
-        environment = {"id": ENV_ID, "continue_after_failure": True, "env_kwargs": _json_ready(env_kwargs),
+        environment = {"id": ENV_ID, "continue_after_failure": True, "env_kwargs": json_ready(env_kwargs),
                        "horizon": int(base.config.horizon), "step_seconds": float(base.config.step_seconds),
                        "action_meanings": list(actions.action_meanings)}
     finally:
@@ -732,7 +711,7 @@ def run_benchmark(
         algo = str(run.get("algo", "ppo")).upper()
         plan[name] = {"policy": policy, "obs_mode": policy.obs_mode, "label": f"{algo} agent, {directory.name}",
                       "parameter": None, "parameter_name": None, "kind": "ppo",
-                      "extra": {"directory": _display_path(directory), "training": _json_ready(run),
+                      "extra": {"directory": _display_path(directory), "training": json_ready(run),
                                 "training_wall_time_s": summary.get("wall_time_s"),
                                 "policy": f"{algo} from {_display_path(directory)} (obs_mode {policy.obs_mode!r})"}}
 
@@ -776,8 +755,8 @@ def run_benchmark(
             "failures": row.pop("failures"),
             "availability": row.pop("availability"),
             "maintenance_actions": row.pop("maintenance_actions"),
-            "cost_ratio_to_oracle": _json_number(ratio),
-            "vs_oracle": _json_ready(paired(s, stats["oracle"])),
+            "cost_ratio_to_oracle": finite_or_none(ratio),
+            "vs_oracle": json_ready(paired(s, stats["oracle"])),
             "parameter": entry["parameter"],
             "action": entry.get("action"),
             "parameter_name": entry["parameter_name"],
@@ -801,15 +780,15 @@ def run_benchmark(
             pairs.append(("PPO", by_mode[less]["ppo"][0], by_mode[more]["ppo"][0]))
         for kind, a, b in pairs:
             gains.append({"kind": kind, "from": less, "to": more, "less": a, "more": b,
-                          "difference": _json_ready(paired(stats[a], stats[b]))})
+                          "difference": json_ready(paired(stats[a], stats[b]))})
 
     from agents.training import TRAINING_SEED, VALIDATION_SEED  # loads torch: imported only here
     from ea_gym.files import write_json, write_text
 
     out.mkdir(parents=True, exist_ok=True)
-    rows = _json_ready(rows)
+    rows = json_ready(rows)
     timed("figures", lambda: (plot_cost_distribution(rows, out / "cost_distribution.png"), plot_timelines(timelines, rows, out / "timelines.png")))
-    write_json(out / "timelines.json", _json_ready(timelines))
+    write_json(out / "timelines.json", json_ready(timelines))
     total = time.perf_counter() - started
     timings["total"] = total
 
@@ -829,13 +808,13 @@ def run_benchmark(
         },
         "commands": {"reproduce": command, "note": command_note},
         "environment": environment,
-        "tuning": _json_ready(tables),
+        "tuning": json_ready(tables),
         "value_of_information": {"by_obs_mode": by_mode, "gains": gains},
         "ci_method": "normal approximation: mean +- 1.96 sd / sqrt(n), sd with ddof=1 (costs and paired differences)",
         "timings_s": timings,
         "machine": {"python": platform.python_version(), "platform": platform.platform(), "numpy": np.__version__},
     }
-    result = _json_ready(result)
+    result = json_ready(result)
     write_json(out / "benchmark.json", result)
     write_text(out / "benchmark.md", markdown(result))
     say(f"wrote {out}/benchmark.json, benchmark.md, cost_distribution.png, timelines.png in {total:.0f} s")

@@ -33,6 +33,8 @@ from typing import Any
 
 import numpy as np
 
+from ea_gym.files import finite_or_none
+
 __all__ = ["EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_ITEMS"]
 
 COST_ITEMS = ("corrective", "replacement", "failure", "lost_production")
@@ -52,10 +54,6 @@ def mean_ci95(values: Sequence[float] | np.ndarray) -> tuple[float, float, float
         return mean, math.nan, math.nan
     half = 1.96 * float(values.std(ddof=1)) / math.sqrt(values.size)
     return mean, mean - half, mean + half
-
-
-def _json_number(value: float) -> float | None:
-    return float(value) if math.isfinite(value) else None
 
 
 @dataclass
@@ -114,7 +112,7 @@ class EpisodeStats:
             "policy": self.policy,
             "episodes": self.n,
             "mean_cost": self.mean_cost,
-            "ci95": [_json_number(low), _json_number(high)],
+            "ci95": [finite_or_none(low), finite_or_none(high)],
             "ci_method": self.ci_method,
             "failures": self.failures,
             "availability": self.availability,
@@ -123,7 +121,7 @@ class EpisodeStats:
             "corrective_steps": float(np.mean(self.per_episode["corrective_steps"])),
             "cost_breakdown": self.cost_breakdown,
             "seeds": [int(s) for s in self.seeds],
-            "per_episode": {key: [_json_number(v) for v in np.asarray(values, dtype=float)] for key, values in self.per_episode.items()},
+            "per_episode": {key: [finite_or_none(v) for v in np.asarray(values, dtype=float)] for key, values in self.per_episode.items()},
         }
 
 
@@ -299,7 +297,7 @@ def tune(
             "parameter": parameter,
             "policy": stats.policy,
             "mean_cost": stats.mean_cost,
-            "ci95": [_json_number(low), _json_number(high)],
+            "ci95": [finite_or_none(low), finite_or_none(high)],
             "failures": stats.failures,
             "availability": stats.availability,
             "maintenance_actions": stats.maintenance_actions,

@@ -31,6 +31,7 @@ from gymnasium import spaces
 from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 from agents.policies import ActionMap, wear_fraction
+from ea_gym.numerics import TINY
 
 #: keys standardised by VecNormalize; the others are bounded and passed as they are
 NORMALISED_KEYS = ("ea", "residual", "time_since_maintenance")
@@ -74,7 +75,7 @@ class LearnerView(VecEnvWrapper):
         if self.nominal is not None and "parameter_estimate" in observation:
             view["wear"] = np.clip(wear_fraction(observation["parameter_estimate"], self.nominal), 0.0, 2.0).astype(np.float32)
         if self.activity and "ea" in observation:
-            microjoules = np.maximum(np.asarray(observation["ea"], dtype=float), 1e-300) / ACTIVITY_FLOOR
+            microjoules = np.maximum(np.asarray(observation["ea"], dtype=float), TINY) / ACTIVITY_FLOOR
             view["activity"] = np.clip(np.log10(microjoules) / ACTIVITY_DECADES, 0.0, 1.0).astype(np.float32)
         return view
 

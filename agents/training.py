@@ -28,12 +28,12 @@ from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, 
 import ea_gym  # noqa: F401 - registers the environments
 from agents.imitation import clone
 from agents.observations import LearnerView, normalised_keys
+from ea_gym.env import ENV_ID
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "a2c": A2C, "dqn": DQN}
-ENV_ID = "ea_gym/SpringMassDamper-v0"
 #: seeds of the training environments start here; evaluation seeds (agents.evaluation) never overlap
 TRAINING_SEED = 1_000
 VALIDATION_SEED = 5_000

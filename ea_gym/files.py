@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 
 def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> Path:
@@ -41,9 +44,31 @@ def write_text(path: str | os.PathLike[str], text: str) -> Path:
 
 def save_figure(figure: Any, path: str | os.PathLike[str], dpi: int = 110) -> Path:
     """Save a matplotlib figure as PNG atomically and close it."""
-    import matplotlib.pyplot as plt
+    from ea_gym.pyplot import plt
 
     try:
         return write_atomic(path, lambda tmp: figure.savefig(tmp, dpi=dpi, format="png"))
     finally:
         plt.close(figure)
+
+
+def finite_or_none(value: float) -> float | None:
+    """``value`` as a float, or None (JSON null) where it is NaN or infinite."""
+    number = float(value)
+    return number if math.isfinite(number) else None
+
+
+def json_ready(value: Any) -> Any:
+    """Plain Python containers and numbers, recursively: mappings as dicts with string keys, sequences and
+    arrays as lists, numpy scalars as Python numbers, NaN and inf as None."""
+    if isinstance(value, Mapping):
+        return {str(k): json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [json_ready(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return finite_or_none(value)
+    return value

@@ -33,20 +33,17 @@ from numpy.lib.stride_tricks import sliding_window_view
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of, draw_loads
 from ea_gym.diagnosis.features import frame_features
-from ea_gym.diagnosis.monitor import (
-    Monitor,
-    MonitorConfig,
-    MonitorWindow,
-    add_sensor_noise,
-)
+from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow
 from ea_gym.energy import activity_index, window_samples
 from ea_gym.models import SystemModel
+from ea_gym.numerics import TINY
 from ea_gym.prognosis import (
     EAParameterEstimator,
     EstimatorConfig,
     ExtrapolationConfig,
     predict_end_of_life,
 )
+from ea_gym.sensors import add_sensor_noise, measure
 
 
 @dataclass(frozen=True)
@@ -184,8 +181,8 @@ def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.nda
     Returns:
         (ea - ea_reference) / ea_reference per element, then balance / dissipated.
     """
-    relative = (ea - ea_reference) / np.maximum(ea_reference, 1e-300)
-    return np.concatenate([relative, (balance / np.maximum(dissipated, 1e-300))[..., None]], axis=-1)
+    relative = (ea - ea_reference) / np.maximum(ea_reference, TINY)
+    return np.concatenate([relative, (balance / np.maximum(dissipated, TINY))[..., None]], axis=-1)
 
 
 def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, windows: np.ndarray, columns: np.ndarray) -> np.ndarray:
@@ -208,9 +205,9 @@ def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, 
     C = gram.shape[-1]
     # a pseudo-inverse: a component the span barely excites drops out instead of taking a ridge's bias
     explained = np.einsum("ni,nij,nj->n", cross, np.linalg.pinv(gram, rcond=1e-12, hermitian=True), cross)
-    variance = np.maximum(square - explained, 1e-300) / np.maximum(windows - C, 1)
+    variance = np.maximum(square - explained, TINY) / np.maximum(windows - C, 1)
     diagonal = np.diagonal(gram, axis1=-2, axis2=-1)
-    single = cross**2 / np.maximum(diagonal, 1e-300)  # explained by one column alone
+    single = cross**2 / np.maximum(diagonal, TINY)  # explained by one column alone
     chi2 = np.empty((len(square), 1 + len(columns)))
     chi2[:, 0] = explained
     chi2[:, 1:] = explained[:, None] - np.where(columns >= 0, single[:, columns], explained[:, None])
@@ -496,7 +493,7 @@ class PHMChain:
         s["raw"][changed, isolated[changed] - 1] = np.nan
         s["isolated"] = isolated
         # the alarm already says there is a fault: confidence is the suspect's share among the fault classes
-        share = diagnosis[np.arange(self.n), isolated] / np.maximum(diagnosis[:, 1:].sum(1), 1e-300)
+        share = diagnosis[np.arange(self.n), isolated] / np.maximum(diagnosis[:, 1:].sum(1), TINY)
         s["confident"] = (isolated > 0) & (share >= self.config.isolation_confidence)
         return diagnosis
 
@@ -589,16 +586,6 @@ class PHMChain:
             if prediction is not None:
                 eol[i] = (prediction.eol, prediction.eol_low, prediction.eol_high)
         return estimate, eol
-
-
-def measure(monitor: Monitor, parameters: np.ndarray, states: np.ndarray, noise: float, rng: np.random.Generator) -> np.ndarray:
-    """Sensor signals (N, nx, T) from true energy variables (N, T, nx) under true ``parameters`` (N, P) or (N, T, P)."""
-    matrix = monitor.measurement_matrix(parameters)
-    if matrix.ndim == 3:
-        clean = np.einsum("nij,ntj->nit", matrix, states)
-    else:
-        clean = np.einsum("ntij,ntj->nit", matrix, states)
-    return add_sensor_noise(clean, noise, rng)
 
 
 def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> np.ndarray:

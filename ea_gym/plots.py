@@ -5,14 +5,10 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-
-from ea_gym.energy import WindowedEnergy  # noqa: E402
-from ea_gym.files import save_figure  # noqa: E402
-from ea_gym.plant import Trajectory  # noqa: E402
+from ea_gym.energy import WindowedEnergy
+from ea_gym.files import save_figure
+from ea_gym.plant import Trajectory
+from ea_gym.pyplot import plt
 
 
 def plot_energy(trajectory: Trajectory, energy: WindowedEnergy, path: str | os.PathLike[str], title: str = "") -> Path:

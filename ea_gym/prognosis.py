@@ -28,6 +28,7 @@ from scipy.stats import norm
 from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
+from ea_gym.numerics import TINY
 
 
 @numba.njit(cache=True)
@@ -155,7 +156,7 @@ class EAParameterEstimator:
         """Per-entry scale of the mismatch: each component's EA, and for the balance see ``balance_share``."""
         ea = signature[..., :-1]
         balance = ea[..., self.monitor.dissipators].sum(-1, keepdims=True) + self.config.balance_share * ea.sum(-1, keepdims=True)
-        return np.maximum(np.concatenate([ea, balance], axis=-1), 1e-300)
+        return np.maximum(np.concatenate([ea, balance], axis=-1), TINY)
 
     def candidate_grid(self, parameter: str) -> np.ndarray:
         lower, upper = self.model.safe_limits[parameter]
@@ -335,7 +336,7 @@ def predict_end_of_life(
     coefficients, covariance = np.polyfit(t - t_now, y, config.degree, cov="unscaled")
     residual = y - np.polyval(coefficients, t - t_now)
     dof = max(len(t) - config.degree - 1, 1)
-    covariance = covariance * max(float(residual @ residual) / dof, 1e-300) * config.correlated
+    covariance = covariance * max(float(residual @ residual) / dof, TINY) * config.correlated
     z = norm.ppf(0.5 + config.confidence / 2)
     slope = np.polyval(np.polyder(coefficients), 0.0)
     limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)

@@ -22,6 +22,7 @@ Units: times in s, parameters in their SI unit (``SystemModel.units``), EA in J,
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import shutil
@@ -30,21 +31,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import matplotlib
-
-matplotlib.use("Agg")
-import itertools
-
-import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.colors import LogNorm
 
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import residual_spectrogram
-from ea_gym.files import save_figure, write_json, write_text
+from ea_gym.files import finite_or_none, json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import eol_error, estimation_errors, prognostic_report
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.prognosis import EndOfLife, predict_end_of_life
+from ea_gym.pyplot import plt
 from ea_gym.scenario import Scenario
 
 __all__ = [
@@ -80,29 +76,6 @@ FIGURES: dict[str, tuple[str, str]] = {
 # --------------------------------------------------------------------------------------------------
 # helpers
 # --------------------------------------------------------------------------------------------------
-
-
-def _json_ready(value: Any) -> Any:
-    """Plain Python containers and numbers; NaN and inf become None."""
-    if isinstance(value, dict):
-        return {str(k): _json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_json_ready(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return [_json_ready(v) for v in value.tolist()]
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    if isinstance(value, (int, np.integer)):
-        return int(value)
-    if isinstance(value, (float, np.floating)):
-        number = float(value)
-        return number if math.isfinite(number) else None
-    return value
-
-
-def _finite_or_none(value: float) -> float | None:
-    value = float(value)
-    return value if math.isfinite(value) else None
 
 
 def _times(run: ChainRun) -> np.ndarray:
@@ -241,8 +214,8 @@ def _eol_predictions(run: ChainRun, chain: PHMChain) -> list[dict[str, Any]]:
                 "eol": eol,
                 "limit": _limit_of(run, chain, i, ready),
                 "rul": eol - t,
-                "rul_low": _finite_or_none(float(s.eol_low[0]) - t),
-                "rul_high": _finite_or_none(float(s.eol_high[0]) - t),
+                "rul_low": finite_or_none(float(s.eol_low[0]) - t),
+                "rul_high": finite_or_none(float(s.eol_high[0]) - t),
             }
         )
     return predictions
@@ -399,7 +372,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
             metrics["eol_fault_phase"] = phases[0] if phases else None
             metrics["predictions_without_true_eol"] = without_truth
         results["metrics"] = metrics
-    return _json_ready(results)
+    return json_ready(results)
 
 
 # --------------------------------------------------------------------------------------------------

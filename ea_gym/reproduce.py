@@ -147,12 +147,8 @@ def reproduce(
 
 def plot_information(runs: dict[str, dict], path: Path) -> Path:
     """EA of every element per step under the constant and the persistent load (noise-free runs)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     from ea_gym.files import save_figure
+    from ea_gym.pyplot import plt
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
     for ax, name in zip(axes, ("constant_noise0", "persistent_noise0")):

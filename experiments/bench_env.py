@@ -83,20 +83,19 @@ except ImportError:  # pragma: no cover - depends on how the script is started
 
 import gymnasium as gym
 import torch
+from machine import machine_info  # noqa: E402 - experiments/machine.py
 from threadpoolctl import threadpool_limits
 
 import ea_gym.env.core as core_module
 import ea_gym.phm as phm_module
 import ea_gym.prognosis as prognosis_module
-from machine import machine_info  # noqa: E402 - experiments/machine.py
-
 from ea_gym.degradation import WearConfig
 from ea_gym.diagnosis.database import classes_of
+from ea_gym.env import ENV_ID
 from ea_gym.files import write_json
 from ea_gym.models import get_model
 from ea_gym.threads import single_threaded_blas, single_threaded_torch
 
-ENV_ID = "ea_gym/SpringMassDamper-v0"
 SYSTEM = "spring_mass_damper"
 OBS_MODES = ("phm", "sensors", "oracle")
 #: Target of the verdict line (env-steps/s, single env, full PHM chain, window_seconds=1, one core).

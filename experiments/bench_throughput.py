@@ -39,10 +39,10 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import ea_gym  # noqa: F401
 
+from ea_gym.env import ENV_ID
 from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
 
-ENV_ID = "ea_gym/SpringMassDamper-v0"
 KWARGS = {"obs_mode": "phm", "continue_after_failure": True}
 
 

@@ -49,6 +49,7 @@ from tqdm import tqdm  # noqa: E402
 from ea_gym.diagnosis.classifier import TrainingConfig  # noqa: E402
 from ea_gym.diagnosis.database import DatabaseConfig, FaultDatabase  # noqa: E402
 from ea_gym.diagnosis.features import N_PEAKS, VARIANTS  # noqa: E402
+from ea_gym.diagnosis.figures import percent, plot_accuracy_vs_magnitude, plot_confusion, plot_peaks  # noqa: E402
 from ea_gym.diagnosis.training import (  # noqa: E402
     MAGNITUDE_BINS,
     IsolationTraining,
@@ -56,7 +57,6 @@ from ea_gym.diagnosis.training import (  # noqa: E402
     shipped_classifier_path,
     train_isolation,
 )
-from ea_gym.diagnosis.figures import percent, plot_accuracy_vs_magnitude, plot_confusion, plot_peaks  # noqa: E402
 from ea_gym.files import write_json, write_text  # noqa: E402
 from ea_gym.models import spring_mass_damper  # noqa: E402
 

@@ -10,7 +10,7 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.metrics import alpha_lambda
 from ea_gym.models import spring_mass_damper
-from ea_gym.phm import PHMConfig, balance_chi_square, build_chain, measure, run_scenario
+from ea_gym.phm import PHMConfig, balance_chi_square, build_chain, run_scenario
 from ea_gym.plant import run_model
 from ea_gym.prognosis import (
     EAParameterEstimator,
@@ -20,6 +20,7 @@ from ea_gym.prognosis import (
 )
 from ea_gym.reproduce import LOADS, phase_eol
 from ea_gym.scenario import load_scenario
+from ea_gym.sensors import measure
 
 MODEL = spring_mass_damper()
 PERSISTENT = LOADS["persistent"]

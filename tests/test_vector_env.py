@@ -6,10 +6,9 @@ import pytest
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 import ea_gym  # noqa: F401 - registers the environments
+from ea_gym.env import ENV_ID
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
-
-ENV_ID = "ea_gym/SpringMassDamper-v0"
 
 
 def _vector(n, **kwargs):

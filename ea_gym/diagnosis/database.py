@@ -15,9 +15,10 @@ import numpy as np
 
 from ea_gym.bondgraph.simulation import simulate_batch
 from ea_gym.diagnosis.features import VARIANTS, frame_features
-from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow, add_sensor_noise
+from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow
 from ea_gym.loads import RandomLoad
 from ea_gym.models import SystemModel
+from ea_gym.sensors import add_sensor_noise
 
 
 @dataclass(frozen=True)

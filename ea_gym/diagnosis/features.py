@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import find_peaks, stft
 
+from ea_gym.numerics import TINY
+
 N_PEAKS = 3
 VARIANTS = ("paper", "strong")
 
@@ -76,7 +78,7 @@ def spectral_peaks(
         (N, 2 N_PEAKS): [f_1, a_1, f_2, a_2, ...], largest first.
     """
     frequencies, _, magnitude = residual_spectrogram(residual, sub_window, residual.shape[-1], residual.shape[-1])
-    magnitude = magnitude[..., 0] / np.maximum(scale, 1e-300)[:, None]
+    magnitude = magnitude[..., 0] / np.maximum(scale, TINY)[:, None]
     out = np.zeros((len(residual), 2 * N_PEAKS))
     for row, spectrum in enumerate(magnitude):
         peaks, _ = find_peaks(spectrum)
@@ -91,7 +93,7 @@ def spectral_peaks(
 
 
 def _relative(numerator: np.ndarray, denominator: np.ndarray) -> np.ndarray:
-    return numerator / np.maximum(denominator, 1e-300)
+    return numerator / np.maximum(denominator, TINY)
 
 
 def balance_deviation(gram: np.ndarray, cross: np.ndarray, limit: float = 1.0) -> np.ndarray:
@@ -101,7 +103,7 @@ def balance_deviation(gram: np.ndarray, cross: np.ndarray, limit: float = 1.0) -
     keeps it finite when a component is barely excited.
     """
     ridge = 1e-9 * np.trace(gram, axis1=-2, axis2=-1)[..., None, None] * np.eye(gram.shape[-1])
-    beta = np.linalg.solve(gram + ridge + 1e-300 * np.eye(gram.shape[-1]), cross[..., None])[..., 0]
+    beta = np.linalg.solve(gram + ridge + TINY * np.eye(gram.shape[-1]), cross[..., None])[..., 0]
     return np.clip(beta, -limit, limit)
 
 

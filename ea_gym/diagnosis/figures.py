@@ -5,15 +5,12 @@ from __future__ import annotations
 from collections.abc import Sequence
 from pathlib import Path
 
-import matplotlib
+import numpy as np
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-
-from ea_gym.diagnosis.database import FaultDatabase  # noqa: E402
-from ea_gym.diagnosis.training import MAGNITUDE_BINS, noise_key  # noqa: E402
-from ea_gym.files import save_figure  # noqa: E402
+from ea_gym.diagnosis.database import FaultDatabase
+from ea_gym.diagnosis.training import MAGNITUDE_BINS, noise_key
+from ea_gym.files import save_figure
+from ea_gym.pyplot import plt
 
 
 def percent(value: float | None) -> str:

@@ -28,6 +28,7 @@ from ea_gym.diagnosis.features import Frame
 from ea_gym.diagnosis.smoothing import LANES, SavitzkyGolay, filter_lanes
 from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
+from ea_gym.numerics import TINY
 
 
 @dataclass(frozen=True)
@@ -72,17 +73,6 @@ class MonitorWindow:
     balance: np.ndarray
     signals: np.ndarray
     noise: np.ndarray
-
-
-def add_sensor_noise(signals: np.ndarray, fraction: float | np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """Add white Gaussian noise of std ``fraction`` x the RMS of each signal over its time axis.
-
-    ``fraction`` may be an array broadcasting against ``signals`` (one level per system).
-    """
-    if np.all(np.asarray(fraction) == 0):
-        return signals
-    rms = np.sqrt(np.mean(signals**2, axis=-1, keepdims=True))
-    return signals + fraction * rms * rng.standard_normal(signals.shape)
 
 
 @numba.njit(cache=True)
@@ -471,7 +461,7 @@ class Monitor:
             ea_reference=ea_reference,
             gram=gram,
             cross=cross,
-            noise=np.sqrt(noise[:, 0] / np.maximum(noise[:, 1], 1e-300)),
+            noise=np.sqrt(noise[:, 0] / np.maximum(noise[:, 1], TINY)),
             sub_window=self.config.sub_window,
             component_index=self._component_index,
             inertia_index=self._inertia_index,

@@ -20,7 +20,6 @@ Populations of the evaluation (test frames of one noise level):
 from __future__ import annotations
 
 import importlib.resources
-import math
 import pathlib
 import time
 from collections.abc import Callable, Mapping
@@ -32,6 +31,7 @@ import numpy as np
 from ea_gym.diagnosis.classifier import FaultClassifier, TrainingConfig
 from ea_gym.diagnosis.database import DatabaseConfig, FaultDatabase, build_database
 from ea_gym.diagnosis.features import VARIANTS
+from ea_gym.files import finite_or_none
 from ea_gym.metrics import confusion_matrix, per_class_accuracy
 from ea_gym.models import SystemModel
 
@@ -83,10 +83,6 @@ def _accuracy(correct: np.ndarray) -> float | None:
     return float(correct.mean()) if correct.size else None
 
 
-def _finite_or_none(value: float) -> float | None:
-    return None if math.isnan(value) else float(value)
-
-
 def _population_scores(
     database: FaultDatabase, variant_predictions: np.ndarray, mask: np.ndarray
 ) -> dict[str, Any]:
@@ -133,7 +129,7 @@ def _population_scores(
             "per_class": {name: int((labels == i).sum()) for i, name in enumerate(classes)},
         },
         "confusion": matrix.tolist(),
-        "per_class_accuracy": {name: _finite_or_none(value) for name, value in recall.items()},
+        "per_class_accuracy": {name: finite_or_none(value) for name, value in recall.items()},
         "accuracy_vs_magnitude": by_magnitude,
     }
 

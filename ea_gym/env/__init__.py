@@ -5,6 +5,7 @@ from gymnasium.envs.registration import register, registry
 from ea_gym.env.costs import CostModel
 
 ENV_IDS = ("ea_gym/SpringMassDamper-v0", "ea_gym/BondGraphMaintenance-v0")
+ENV_ID = ENV_IDS[0]  # the paper's spring-mass-damper: the default of every command and experiment
 
 if ENV_IDS[0] not in registry:
     register(
@@ -18,4 +19,4 @@ if ENV_IDS[0] not in registry:
         vector_entry_point="ea_gym.env.vector:BondGraphMaintenanceVectorEnv",
     )
 
-__all__ = ["ENV_IDS", "CostModel"]
+__all__ = ["ENV_ID", "ENV_IDS", "CostModel"]

@@ -7,18 +7,12 @@ PHM chain (or only the monitor), then check failures and count costs.
 
 from __future__ import annotations
 
-import ctypes
 import math
-import operator
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-import numba
 import numpy as np
-from numba.core import cgutils, types
-from numba.extending import intrinsic
-from numba.np.random.distributions import random_standard_normal
 
 from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.degradation import Wear, WearConfig
@@ -30,6 +24,7 @@ from ea_gym.env.costs import CostModel
 from ea_gym.loads import multisine_rotations, rotated_multisine
 from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
+from ea_gym.sensors import SystemNoise
 from ea_gym.threads import single_threaded_blas
 
 OBS_MODES = ("phm", "sensors", "oracle")
@@ -38,40 +33,6 @@ LOAD_COMPONENTS = 16
 
 
 _THRESHOLDS: dict[tuple, np.ndarray] = {}
-_BIT_GENERATOR = types.NumPyRandomBitGeneratorType("bit_generator")
-
-
-@intrinsic
-def _bit_generator(typingctx, state, next_uint64, next_uint32, next_double):
-    """numba's view of a numpy bit generator from the addresses of its state and functions: what
-    passing the Generator itself gives, without unboxing it from Python at every call."""
-
-    def codegen(context, builder, signature, args):
-        proxy = cgutils.create_struct_proxy(_BIT_GENERATOR)(context, builder)
-        proxy.state, proxy.fnptr_next_uint64, proxy.fnptr_next_uint32, proxy.fnptr_next_double = args
-        return proxy._getvalue()
-
-    return _BIT_GENERATOR(types.uintp, types.uintp, types.uintp, types.uintp), codegen
-
-
-def _bit_generator_addresses(rng: np.random.Generator) -> tuple[int, int, int, int]:
-    """(state, next_uint64, next_uint32, next_double) addresses of ``rng``'s bit generator, as ``_bit_generator`` takes them."""
-    interface = rng.bit_generator.ctypes
-    functions = (interface.next_uint64, interface.next_uint32, interface.next_double)
-    return (interface.state_address, *(ctypes.cast(f, ctypes.c_void_p).value for f in functions))
-
-
-@numba.njit(cache=True)
-def _standard_normal_rows(generators: np.ndarray, out: np.ndarray) -> None:
-    """Row i of ``out`` (N, ...) filled in C order from generator i (``_bit_generator_addresses``, (N, 4)):
-    numba's ziggurat is numpy's, so these are the numbers ``Generator.standard_normal(out=row)`` gives."""
-    for i in range(out.shape[0]):
-        bit_generator = _bit_generator(generators[i, 0], generators[i, 1], generators[i, 2], generators[i, 3])
-        row = out[i].reshape(-1)
-        for k in range(row.size):
-            row[k] = random_standard_normal(bit_generator)
-
-
 def _calibrated_thresholds(model: SystemModel, config: PHMConfig, seed: int) -> np.ndarray:
     """Detection thresholds, calibrated once per process for a model, chain settings and seed.
 
@@ -205,8 +166,7 @@ class MaintenanceCore:
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self._state: dict[str, np.ndarray] = {}
         self._idle = self._idle_outputs()
-        # the generators whose addresses ``_sensor_noise`` last took, holding them alive, and those addresses
-        self._noise_generators: tuple[Sequence[np.random.Generator], np.ndarray] = ((), np.empty((0, 4), dtype=np.uintp))
+        self.sensor_noise = SystemNoise(config.noise)
 
     # -- episode bookkeeping ------------------------------------------------------------------
 
@@ -423,7 +383,7 @@ class MaintenanceCore:
         signals, last = simulate_measured(self.model.state_space, self.h, loads, rates, theta, x0, gain)
         s["plant"], s["reference"] = last[:n], last[n:]
         s["operation"] = s["operation"] + self.config.window
-        measured = self._sensor_noise(signals[:n], rngs)
+        measured = self.sensor_noise(signals[:n], rngs)
         expected = signals[n:]
         if self.chain is not None:
             status = self.chain.update(measured, expected, u, du)
@@ -436,29 +396,6 @@ class MaintenanceCore:
         components = np.array([self.elements.index(c) for c in self.rco])
         eai = np.stack(list(activity_index(dict(enumerate(ea[:, components].T))).values()), axis=1)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
-
-    def _sensor_noise(self, clean: np.ndarray, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """``add_sensor_noise`` on every system's signals (N, nx, T), system i drawing from ``rngs[i]``.
-
-        The same numbers as calling it system by system, in array operations and one compiled loop for the draws.
-        """
-        fraction = self.config.noise
-        if fraction == 0:
-            return clean
-        rms = np.sqrt(np.mean(clean**2, axis=-1, keepdims=True))
-        noise = np.empty_like(clean)
-        _standard_normal_rows(self._generator_addresses(rngs), noise)
-        noise *= fraction * rms
-        noise += clean
-        return noise
-
-    def _generator_addresses(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """``_bit_generator_addresses`` of every generator (N, 4), taken again only when the generators change."""
-        known, addresses = self._noise_generators
-        if len(known) != len(rngs) or not all(map(operator.is_, known, rngs)):
-            addresses = np.array([_bit_generator_addresses(rng) for rng in rngs], dtype=np.uintp).reshape(-1, 4)
-            self._noise_generators = (tuple(rngs), addresses)
-        return addresses
 
     def _idle_outputs(self) -> dict[str, np.ndarray]:
         """Outputs before the first step (or while a machine is down): no activity, nothing known.

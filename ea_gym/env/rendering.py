@@ -28,10 +28,7 @@ def render_ansi(env: Any, history: list[dict[str, Any]]) -> str:
 
 def render_rgb(env: Any, history: list[dict[str, Any]]) -> np.ndarray:
     """Recent EA per element, parameter position in the safe range (true and estimated), RUL."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from ea_gym.pyplot import plt
 
     core = env.core
     steps = np.arange(len(history))
