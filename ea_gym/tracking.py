@@ -1,0 +1,339 @@
+"""Tracking parameter estimation: a bank of extended Kalman filters, one per (system, hypothesis).
+
+Hypothesis 0 is "none" (every parameter nominal); hypothesis j + 1 is "degradable parameter j alone
+drifts". Each filter's state is the model's energy variables, that parameter theta and its drift rate
+(a random walk), propagated through the plant's own exact discretization (``discretize``: matrix
+exponential, cubic Hermite input) read off a Chebyshev interpolant in theta, so the filter's model
+matches the plant's to round-off and its sensitivity dPhi/dtheta comes analytically from the
+interpolant. The filters run from each system's first step (a filter bank started at an alarm would
+need the fault's history replayed; from the start, it has it, at D + 1 filters per system), and each
+one's innovations give its hypothesis's log-likelihood, the isolation evidence. Prognosis carries the
+parameter and its drift, with their joint covariance, to the safe limit (``drift_end_of_life``).
+
+Process noise (``TrackingConfig``) was chosen on the spring-mass-damper's k ramp with sensor seeds
+distinct from the evaluation seeds (``experiments/tracking_accuracy.py --tune``).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import chebyshev
+from scipy.special import ndtri
+
+from ea_gym._kernels.tracking import track
+from ea_gym.bondgraph.elements import Kind
+from ea_gym.bondgraph.simulation import discretize
+from ea_gym.models import SystemModel
+
+
+@dataclass(frozen=True)
+class StepSignals:
+    """One step of what the chain receives: measured (N, nx, L + 1) flows of I and displacements of C
+    elements; the source's value and time derivative (N, L + 1); t (N,) the time at the step's end (s)."""
+
+    measured: np.ndarray
+    load: np.ndarray
+    load_rate: np.ndarray
+    t: np.ndarray
+
+
+@dataclass(frozen=True)
+class ParameterEstimates:
+    """Every degradable parameter's estimate, each as if it alone were faulty, (N, D): value (its SI
+    unit), variance, drift (unit/s), drift_variance; log_evidence (N, D + 1), "none" first, larger is
+    better, NaN where not fitted; estimated: whether each value is meant to be used; time (s) each value describes."""
+
+    value: np.ndarray
+    variance: np.ndarray
+    drift: np.ndarray
+    drift_variance: np.ndarray
+    log_evidence: np.ndarray
+    estimated: np.ndarray
+    time: np.ndarray
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Filter settings; parameter quantities relative to the parameter's nominal value.
+
+    Attributes:
+        theta_noise: random-walk std of theta, per sqrt(s) (1/sqrt(s)).
+        drift_noise: random-walk std of the drift, per sqrt(s) (1/s^1.5): how fast a wear rate may change.
+        state_noise: each energy variable's process-noise variance per sample, as a multiple of its
+            measurement noise variance (covers the Hermite input's and the midpoint hold's small errors).
+        theta_prior: std of theta at the start (the part is nominal, up to its tolerance).
+        drift_prior: std of the drift at the start (1/s).
+        evidence_memory: time constant (s) of the log-likelihoods' forgetting; inf: none.
+        min_noise: floor of the measurement noise fraction, which keeps noise-free signals well posed.
+    """
+
+    theta_noise: float = 1e-4
+    drift_noise: float = 2e-5
+    state_noise: float = 1e-3
+    theta_prior: float = 1e-3
+    drift_prior: float = 1e-4
+    evidence_memory: float = math.inf
+    min_noise: float = 1e-4
+
+    def __post_init__(self) -> None:
+        for name in ("theta_noise", "drift_noise", "state_noise", "theta_prior", "drift_prior", "min_noise"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"TrackingConfig.{name} must be finite and >= 0, got {value!r}")
+        if not self.evidence_memory > 0:
+            raise ValueError(f"TrackingConfig.evidence_memory must be > 0 s, got {self.evidence_memory!r}")
+
+
+@dataclass(frozen=True)
+class HypothesisModels:
+    """What the kernel needs per hypothesis (H = D + 1, "none" first).
+
+    coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma](theta); lo, hi: (H,) their
+    range (the parameter's unit); gain: (H, nx) measurement gains at nominal; own: (H,) the state whose
+    gain is 1 / theta (-1: none); nominal: (H,) theta at nominal (the "none" slot's: its unused parameter's).
+    """
+
+    coefficients: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    gain: np.ndarray
+    own: np.ndarray
+    nominal: np.ndarray
+
+
+def interpolate_discretization(
+    model: SystemModel, index: int, lo: float, hi: float, h: float, rtol: float = 1e-11
+) -> np.ndarray:
+    """Chebyshev coefficients (K, nx, nx + 4) of [Phi | Gamma] as parameter ``index`` spans [lo, hi].
+
+    The degree grows until the interpolant matches direct evaluation to ``rtol`` (relative to each
+    matrix's largest entry) between its nodes.
+
+    Raises:
+        ValueError: when no degree up to 96 reaches ``rtol``.
+    """
+    base = model.parameter_vector()
+
+    def evaluate(s: np.ndarray) -> np.ndarray:
+        theta = np.repeat(base[None], len(s), axis=0)
+        theta[:, index] = lo + (s + 1.0) * 0.5 * (hi - lo)
+        mats = model.state_space.matrices(theta)
+        step = discretize(mats.A, mats.B, h)
+        return np.concatenate([step.Phi, step.Gamma], axis=-1)
+
+    check = chebyshev.chebpts2(129)
+    exact = evaluate(check)
+    for degree in (8, 16, 24, 32, 48, 64, 96):
+        nodes = chebyshev.chebpts1(degree + 1)
+        values = evaluate(nodes)
+        coefficients = chebyshev.chebfit(nodes, values.reshape(len(nodes), -1), degree)
+        approx = chebyshev.chebval(check, coefficients.T).T.reshape(exact.shape)
+        scale = np.abs(exact).max(axis=0, keepdims=True) + np.finfo(float).tiny
+        if np.max(np.abs(approx - exact) / scale.max()) <= rtol:
+            return np.ascontiguousarray(coefficients.reshape((degree + 1,) + exact.shape[1:]))
+    raise ValueError(f"the discretization of {model.name!r} is not smooth enough in {model.parameter_names[index]!r} on [{lo}, {hi}]")
+
+
+def hypothesis_models(model: SystemModel, degradable: Sequence[str], h: float) -> HypothesisModels:
+    """The kernel's per-hypothesis data for ``degradable`` parameters at sample period ``h`` (s).
+
+    Each interpolant spans half the lower safe limit to 1.5 x the upper one (or nominal, if beyond).
+    """
+    space = model.state_space
+    nominal = model.parameter_vector()
+    nx = space.n_states
+    gain = np.ones(nx)
+    inertia = {}
+    for i, name in enumerate(space.state_names):
+        if model.graph.elements[name].kind is Kind.I:
+            gain[i] = 1.0 / model.nominal[name]
+            inertia[name] = i
+    mats = model.state_space.matrices(nominal)
+    constant = np.concatenate([discretize(mats.A, mats.B, h).Phi, discretize(mats.A, mats.B, h).Gamma], axis=-1)
+    pieces = [constant[None]]
+    lo, hi, own, values = [nominal[0]], [nominal[0]], [-1], [nominal[0]]
+    for name in degradable:
+        index = space.parameter_names.index(name)
+        lower, upper = model.safe_limits.get(name, (nominal[index], nominal[index]))
+        lo.append(0.5 * min(lower, nominal[index]))
+        hi.append(1.5 * max(upper, nominal[index]))
+        pieces.append(interpolate_discretization(model, index, lo[-1], hi[-1], h))
+        own.append(inertia.get(name, -1))
+        values.append(nominal[index])
+    size = max(len(p) for p in pieces)
+    coefficients = np.zeros((len(pieces), size) + constant.shape)
+    for f, piece in enumerate(pieces):
+        coefficients[f, : len(piece)] = piece
+    return HypothesisModels(
+        coefficients=coefficients, lo=np.array(lo), hi=np.array(hi), gain=np.repeat(gain[None], len(pieces), axis=0),
+        own=np.array(own, dtype=np.int64), nominal=np.array(values),
+    )
+
+
+class TrackingEstimator:
+    """Tracks every degradable parameter of N systems with one filter per hypothesis (see the module docstring).
+
+    Args:
+        model: the monitored system.
+        sample_rate: the signals' sampling rate (Hz).
+        noise: the sensors' noise std as a fraction of each signal's RMS over a step.
+        n_systems: N.
+        degradable: the tracked parameters; default every one with safe limits.
+        config: process noise and priors.
+    """
+
+    def __init__(
+        self, model: SystemModel, sample_rate: float, noise: float, n_systems: int = 1,
+        degradable: Sequence[str] | None = None, config: TrackingConfig | None = None,
+    ) -> None:
+        self.model = model
+        self.degradable: tuple[str, ...] = tuple(degradable) if degradable is not None else tuple(
+            p for p in model.parameter_names if p in model.safe_limits
+        )
+        for name in self.degradable:
+            model.check_name(name, "degradable")
+        self.config = config or TrackingConfig()
+        self.h = 1.0 / sample_rate
+        self.noise = max(float(noise), self.config.min_noise)
+        self.n = n_systems
+        self.hypotheses = hypothesis_models(model, self.degradable, self.h)
+        nominal = self.hypotheses.nominal
+        self.process_noise = np.zeros((len(nominal), 2))
+        self.process_noise[1:, 0] = (self.config.theta_noise * nominal[1:]) ** 2 * self.h
+        self.process_noise[1:, 1] = (self.config.drift_noise * nominal[1:]) ** 2 * self.h
+        self.forget = math.exp(-self.h / self.config.evidence_memory)
+        nx = model.state_space.n_states
+        self.z = np.zeros((n_systems, len(nominal), nx + 2))
+        self.P = np.zeros((n_systems, len(nominal), nx + 2, nx + 2))
+        self.log_likelihood = np.zeros((n_systems, len(nominal)))
+        self.started = np.zeros(n_systems, dtype=bool)
+        self.alarmed = np.zeros(n_systems, dtype=bool)
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems, or those where the boolean mask (N,) is true: their filters
+        restart, at nominal, from their next step."""
+        rows = slice(None) if systems is None else np.asarray(systems, dtype=bool)
+        self.started[rows] = False
+        self.alarmed[rows] = False
+
+    def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
+        """Maintenance moved degradable parameter ``parameters[k]`` (index into ``degradable``) of system
+        ``systems[k]`` by ``changes[k]`` (its SI unit) before the next update: that hypothesis's theta moves
+        by the known change (its drift, the wear's rate, stays)."""
+        nx = self.model.state_space.n_states
+        self.z[np.asarray(systems), np.asarray(parameters) + 1, nx] += np.asarray(changes, dtype=float)
+
+    def measurement_variance(self, measured: np.ndarray) -> np.ndarray:
+        """Each channel's noise variance (N, nx): noise^2 x its clean RMS^2, from the noisy RMS over the step."""
+        mean_square = np.mean(measured**2, axis=-1)
+        return self.noise**2 * mean_square / (1.0 + self.noise**2)
+
+    def start(self, rows: np.ndarray, measured: np.ndarray, variance: np.ndarray) -> None:
+        """Filters of systems ``rows`` at nominal, their states from the step's first sample."""
+        hyp, c = self.hypotheses, self.config
+        nx = measured.shape[1]
+        gain = np.repeat(hyp.gain[None], len(rows), axis=0)  # (S, H, nx)
+        z = np.zeros((len(rows), len(hyp.nominal), nx + 2))
+        z[:, :, :nx] = measured[:, None, :, 0] / gain
+        z[:, :, nx] = hyp.nominal
+        P = np.zeros((len(rows),) + self.P.shape[1:])
+        diagonal = np.arange(nx)
+        P[:, :, diagonal, diagonal] = variance[:, None, :] / gain**2
+        P[:, 1:, nx, nx] = (c.theta_prior * hyp.nominal[1:]) ** 2
+        P[:, 1:, nx + 1, nx + 1] = (c.drift_prior * hyp.nominal[1:]) ** 2
+        self.z[rows], self.P[rows] = z, P
+        self.log_likelihood[rows] = 0.0
+        self.started[rows] = True
+
+    def update(self, signals: StepSignals, alarm: np.ndarray, suspects: np.ndarray) -> ParameterEstimates:
+        """Run every filter over one step. ``alarm`` (N,) and ``suspects`` (N, D) say which estimates are
+        meant to be used (``estimated``: the suspects of systems alarmed since their reset); every
+        filter runs regardless, so that a later suspect has its whole history."""
+        measured = np.ascontiguousarray(signals.measured, dtype=float)
+        n, nx = self.n, self.model.state_space.n_states
+        if measured.ndim != 3 or measured.shape[:2] != (n, nx):
+            raise ValueError(f"signals.measured must be (N={n}, nx={nx}, L + 1), got {measured.shape}")
+        if np.shape(signals.load) != (n, measured.shape[2]) or np.shape(signals.load_rate) != (n, measured.shape[2]):
+            raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
+        variance = self.measurement_variance(measured)
+        fresh = np.flatnonzero(~self.started)
+        if len(fresh):
+            self.start(fresh, measured[fresh], variance[fresh])
+        hyp = self.hypotheses
+        track(
+            hyp.coefficients, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
+            np.arange(n), measured, np.ascontiguousarray(signals.load, dtype=float),
+            np.ascontiguousarray(signals.load_rate, dtype=float), variance, self.z, self.P, self.log_likelihood,
+        )
+        self.alarmed |= np.asarray(alarm, dtype=bool)
+        return self.estimates(np.asarray(signals.t, dtype=float), np.asarray(suspects, dtype=bool))
+
+    def estimates(self, t: np.ndarray, suspects: np.ndarray) -> ParameterEstimates:
+        """The filters' current estimates at times ``t`` (N,)."""
+        nx = self.model.state_space.n_states
+        return ParameterEstimates(
+            value=self.z[:, 1:, nx].copy(),
+            variance=self.P[:, 1:, nx, nx].copy(),
+            drift=self.z[:, 1:, nx + 1].copy(),
+            drift_variance=self.P[:, 1:, nx + 1, nx + 1].copy(),
+            log_evidence=self.log_likelihood.copy(),
+            estimated=self.alarmed[:, None] & suspects,
+            time=np.repeat(t[:, None], len(self.degradable), axis=1),
+        )
+
+    def covariance(self) -> np.ndarray:
+        """The joint covariance of (theta, drift) of every hypothesis's filter, (N, D, 2, 2)."""
+        nx = self.model.state_space.n_states
+        return self.P[:, 1:, nx:, nx:].copy()
+
+
+def drift_end_of_life(
+    value: np.ndarray, drift: np.ndarray, covariance: np.ndarray, limits: np.ndarray, t: np.ndarray, confidence: float = 0.95
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """End of Life where theta + drift (s - t) reaches the safe limit it heads for, with its interval.
+
+    theta and drift are jointly Gaussian (``covariance``), so at a horizon tau the parameter is
+    N(theta + drift tau, var_theta + 2 tau cov + tau^2 var_drift), and P(limit crossed by tau) is a
+    normal CDF. The interval's ends are the horizons where that probability is (1 -+ confidence) / 2:
+    the roots of a quadratic in tau, bounded above only when the drift is resolved (|drift| / its std
+    above the confidence's z, about 2).
+
+    Args:
+        value, drift: (...,) the parameter (its unit) and its drift (unit/s).
+        covariance: (..., 2, 2) of (theta, drift).
+        limits: (..., 2) the (lower, upper) safe limits.
+        t: (...,) the time the values describe (s).
+
+    Returns:
+        eol, eol_low, eol_high (s), each (...,); inf where the limit is not approached (or not surely).
+    """
+    value, drift = np.asarray(value, dtype=float), np.asarray(drift, dtype=float)
+    limits, t = np.asarray(limits, dtype=float), np.asarray(t, dtype=float)
+    upward = drift >= 0
+    limit = np.where(upward, limits[..., 1], limits[..., 0])
+    sign = np.where(upward, 1.0, -1.0)
+    margin = sign * (limit - value)  # distance still to go, toward the limit (> 0 before it)
+    rate = sign * drift
+    v_tt, v_td, v_dd = covariance[..., 0, 0], sign * covariance[..., 0, 1], covariance[..., 1, 1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
+        z = float(ndtri(0.5 + 0.5 * confidence))
+        # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd)
+        a = rate**2 - z**2 * v_dd
+        b = -2.0 * rate * margin - 2.0 * z**2 * v_td
+        c = margin**2 - z**2 * v_tt
+        root = np.sqrt(np.maximum(b**2 - 4.0 * a * c, 0.0))
+        linear = -c / b
+        r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
+        small, large = np.minimum(r1, r2), np.maximum(r1, r2)
+        # a > 0: both ends finite, the smaller root the low one; a < 0: the roots straddle 0, the
+        # positive one the low end and no high end
+        low = np.where(a > 0, small, np.where(a < 0, large, linear))
+        low = np.where(c <= 0, 0.0, np.maximum(low, 0.0))
+        high = np.where(a > 0, np.maximum(large, 0.0), np.inf)
+        high = np.where((margin < 0) & (c > 0), 0.0, high)  # surely past the limit already
+    return t + tau, t + low, t + high

@@ -1,0 +1,184 @@
+"""Accuracy and speed of the tracking estimator on issue 17's three spring-mass-damper ramps.
+
+Each scenario (experiments/scenarios/{spring_k,damper_b,mass_m}_ramp.json) runs with 5 sensor-noise
+seeds (the scenario's seed + 100 i, i = 0..4), its signals generated as the chain's harness does
+(plant, clean measurement, noise added step by step), the true hypothesis given. Printed per parameter:
+median / max estimate error from 10 s after onset to the true End of Life, alpha-lambda (alpha 0.2:
+the share of predictions within +-20 % of the true RUL, made every second from 50 to 90 % of the way
+from onset to End of Life), the share of those predictions whose 95 % interval covers the true RUL
+(unbounded intervals count as misses), ProgPy's UKF numbers from the issue beside them; whether the
+true hypothesis holds the largest log-evidence; and the time per step at N = 1 and N = 256.
+
+    python experiments/tracking_accuracy.py            # the table (evaluation seeds 0..4)
+    python experiments/tracking_accuracy.py --tune     # process-noise grid on the k ramp, seeds 10..12
+"""
+
+from __future__ import annotations
+
+import argparse
+import itertools
+import sys
+import time
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.plant import run_model
+from ea_gym.scenario import Scenario, load_scenario
+from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.tracking import StepSignals, TrackingConfig, TrackingEstimator, drift_end_of_life
+
+SCENARIOS = Path(__file__).resolve().parent / "scenarios"
+NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
+# ProgPy UKF from issue 17: median, max error; alpha-lambda; coverage
+UKF = {"k": (0.015, 0.15, 1.00, 0.95), "b": (0.0027, 0.009, 0.83, 0.96), "m": (0.0015, 0.018, 1.00, 1.00)}
+STEP = 1.0  # s of signal per update, the chain's default
+
+
+@dataclass
+class Signals:
+    """One run's step windows: measured (steps, 1, nx, L + 1), load and rate (steps, 1, L + 1), step ends t (steps,), true parameter (steps,)."""
+
+    measured: np.ndarray
+    load: np.ndarray
+    load_rate: np.ndarray
+    t: np.ndarray
+    truth: np.ndarray
+
+
+def scenario_signals(scenario: Scenario, seed: int) -> Signals:
+    """The chain harness's signals: plant, clean measurement, then noise per step from ``seed``."""
+    model, t = scenario.model, scenario.times()
+    load = scenario.make_load()
+    plant = run_model(model, t, load, scenario.parameters_at, scenario.initial_state_vector())
+    rng = np.random.default_rng(seed)
+    clean = measure(Monitor(model, 1.0 / scenario.sample_rate), plant.parameters[None], plant.states[None], 0.0, rng)
+    u, du = load.value(t)[None], load.derivative(t)[None]
+    step = int(round(STEP * scenario.sample_rate))
+    starts = list(range(0, len(t) - step, step))
+    measured = np.stack([add_sensor_noise(clean[..., s : s + step + 1], scenario.noise, rng) for s in starts])
+    index = model.parameter_names.index(scenario.fault.parameter)
+    ends = np.array([s + step for s in starts])
+    return Signals(
+        measured, np.stack([u[:, s : s + step + 1] for s in starts]), np.stack([du[:, s : s + step + 1] for s in starts]),
+        t[ends], plant.parameters[ends, index],
+    )
+
+
+def true_end_of_life(scenario: Scenario) -> tuple[float, float]:
+    """Onset (s) and the time the true parameter first leaves its safe limits (s)."""
+    name = scenario.fault.parameter
+    t = np.linspace(0.0, scenario.duration, 100001)
+    values = scenario.parameters_at(t)[:, scenario.model.parameter_names.index(name)]
+    lower, upper = scenario.model.safe_limits[name]
+    onset = float(t[np.flatnonzero(values != values[0])[0] - 1])
+    return onset, float(t[np.flatnonzero((values < lower) | (values > upper))[0]])
+
+
+def track_run(scenario: Scenario, signals: Signals, config: TrackingConfig) -> dict[str, np.ndarray]:
+    """The true hypothesis's estimate, RUL and interval, and the evidence ranking, at every step end."""
+    estimator = TrackingEstimator(scenario.model, scenario.sample_rate, scenario.noise, 1, config=config)
+    j = estimator.degradable.index(scenario.fault.parameter)
+    limits = np.array(scenario.model.safe_limits[scenario.fault.parameter])
+    rows: dict[str, list] = {"value": [], "rul": [], "low": [], "high": [], "best": []}
+    suspects = np.ones((1, len(estimator.degradable)), dtype=bool)
+    for k in range(len(signals.t)):
+        step = StepSignals(signals.measured[k], signals.load[k], signals.load_rate[k], signals.t[k : k + 1])
+        est = estimator.update(step, np.ones(1, dtype=bool), suspects)
+        eol, low, high = drift_end_of_life(est.value[0, j], est.drift[0, j], estimator.covariance()[0, j], limits, est.time[0, j])
+        rows["value"].append(est.value[0, j])
+        rows["rul"].append(eol - signals.t[k])
+        rows["low"].append(low - signals.t[k])
+        rows["high"].append(high - signals.t[k])
+        rows["best"].append(int(np.argmax(est.log_evidence[0])) - 1 == j)
+    return {key: np.array(value) for key, value in rows.items()}
+
+
+def evaluate(scenario: Scenario, signals: Signals, run: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Errors over [onset + 10 s, EoL]; cone hits and interval coverage at the 50-90 % prediction times."""
+    onset, eol = true_end_of_life(scenario)
+    t = signals.t
+    window = (t >= onset + 10.0) & (t <= eol)
+    error = np.abs(run["value"] - signals.truth)[window]
+    fraction = (t - onset) / (eol - onset)
+    predict = (fraction >= 0.5) & (fraction <= 0.9)
+    rul_true = eol - t[predict]
+    rul = run["rul"][predict]
+    hit = (rul >= 0.8 * rul_true) & (rul <= 1.2 * rul_true)
+    covered = (run["low"][predict] <= rul_true) & (rul_true <= run["high"][predict]) & np.isfinite(run["high"][predict])
+    return {"error": error, "hit": hit, "covered": covered, "best": run["best"][window]}
+
+
+def accuracy(seeds: range, config: TrackingConfig, names: tuple[str, ...] = NAMES) -> dict[str, dict[str, np.ndarray]]:
+    """Pooled ``evaluate`` results per fault parameter over ``seeds`` (offsets i: sensor seed + 100 i)."""
+    results: dict[str, dict[str, np.ndarray]] = {}
+    for name in names:
+        scenario = load_scenario(SCENARIOS / f"{name}.json")
+        parts = [evaluate(scenario, s, track_run(scenario, s, config)) for s in (scenario_signals(scenario, scenario.sensor_seed + 100 * i) for i in seeds)]
+        results[scenario.fault.parameter] = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    return results
+
+
+def print_table(results: dict[str, dict[str, np.ndarray]]) -> None:
+    print("| parameter | median / max error | UKF | alpha-lambda | UKF | coverage | UKF | true hypothesis best |")
+    print("|---|---|---|---|---|---|---|---|")
+    for p, r in results.items():
+        ukf = UKF[p]
+        print(
+            f"| {p} | {np.median(r['error']):.4g} / {np.max(r['error']):.4g} | {ukf[0]} / {ukf[1]} | {r['hit'].mean():.2f} | {ukf[2]:.2f} "
+            f"| {r['covered'].mean():.2f} | {ukf[3]:.2f} | {r['best'].mean():.2f} |"
+        )
+
+
+def speed(n_systems: int, repeats: int = 20) -> float:
+    """Seconds per update of N systems x 3 hypotheses (+ "none") on 1 s steps at 100 Hz."""
+    scenario = load_scenario(SCENARIOS / "spring_k_ramp.json")
+    signals = scenario_signals(scenario, 0)
+    estimator = TrackingEstimator(scenario.model, scenario.sample_rate, scenario.noise, n_systems)
+    suspects = np.ones((n_systems, 3), dtype=bool)
+    alarm = np.ones(n_systems, dtype=bool)
+
+    def step(k: int) -> StepSignals:
+        tile = (n_systems, 1, 1)
+        return StepSignals(
+            np.tile(signals.measured[k], tile), np.tile(signals.load[k], tile[:2]), np.tile(signals.load_rate[k], tile[:2]),
+            np.full(n_systems, signals.t[k]),
+        )
+
+    steps = [step(k) for k in range(repeats + 1)]
+    estimator.update(steps[0], alarm, suspects)  # compile / warm up
+    start = time.perf_counter()
+    for s in steps[1:]:
+        estimator.update(s, alarm, suspects)
+    return (time.perf_counter() - start) / repeats
+
+
+def tune() -> None:
+    """Grid over theta_noise x drift_noise on the k ramp's tuning seeds (10..12); prints each setting's scores."""
+    base = TrackingConfig()
+    for theta_noise, drift_noise in itertools.product((0.0, 1e-4, 3e-4), (5e-6, 2e-5, 5e-5)):
+        config = replace(base, theta_noise=theta_noise, drift_noise=drift_noise)
+        r = accuracy(range(10, 13), config, ("spring_k_ramp",))["k"]
+        print(f"theta_noise {theta_noise:g} drift_noise {drift_noise:g}: median {np.median(r['error']):.4f} max {np.max(r['error']):.4f} "
+              f"alpha-lambda {r['hit'].mean():.2f} coverage {r['covered'].mean():.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--tune", action="store_true", help="process-noise grid on the tuning seeds 10..12 instead of the table")
+    args = parser.parse_args()
+    if args.tune:
+        tune()
+        return
+    print_table(accuracy(range(5), TrackingConfig()))
+    for n in (1, 256):
+        seconds = speed(n)
+        print(f"N = {n:3d} systems x 3 hypotheses (+ none): {1e3 * seconds:.3f} ms per 1 s step ({n / seconds:.0f} system-steps/s)")
+
+
+if __name__ == "__main__":
+    main()
