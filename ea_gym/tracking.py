@@ -73,7 +73,7 @@ class TrackingConfig:
 
     theta_noise: float = 1e-4
     drift_noise: float = 2e-5
-    state_noise: float = 1e-3
+    state_noise: float = 0.0
     theta_prior: float = 1e-3
     drift_prior: float = 1e-4
     evidence_memory: float = math.inf
@@ -92,12 +92,14 @@ class TrackingConfig:
 class HypothesisModels:
     """What the kernel needs per hypothesis (H = D + 1, "none" first).
 
-    coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma](theta); lo, hi: (H,) their
+    coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma](theta), the first terms (H,) of
+    them nonzero; lo, hi: (H,) their
     range (the parameter's unit); gain: (H, nx) measurement gains at nominal; own: (H,) the state whose
     gain is 1 / theta (-1: none); nominal: (H,) theta at nominal (the "none" slot's: its unused parameter's).
     """
 
     coefficients: np.ndarray
+    terms: np.ndarray
     lo: np.ndarray
     hi: np.ndarray
     gain: np.ndarray
@@ -131,7 +133,7 @@ def interpolate_discretization(
         nodes = chebyshev.chebpts1(degree + 1)
         values = evaluate(nodes)
         coefficients = chebyshev.chebfit(nodes, values.reshape(len(nodes), -1), degree)
-        approx = chebyshev.chebval(check, coefficients.T).T.reshape(exact.shape)
+        approx = chebyshev.chebval(check, coefficients).T.reshape(exact.shape)
         scale = np.abs(exact).max(axis=0, keepdims=True) + np.finfo(float).tiny
         if np.max(np.abs(approx - exact) / scale.max()) <= rtol:
             return np.ascontiguousarray(coefficients.reshape((degree + 1,) + exact.shape[1:]))
@@ -169,7 +171,7 @@ def hypothesis_models(model: SystemModel, degradable: Sequence[str], h: float) -
     for f, piece in enumerate(pieces):
         coefficients[f, : len(piece)] = piece
     return HypothesisModels(
-        coefficients=coefficients, lo=np.array(lo), hi=np.array(hi), gain=np.repeat(gain[None], len(pieces), axis=0),
+        coefficients=coefficients, terms=np.array([len(p) for p in pieces], dtype=np.int64), lo=np.array(lo), hi=np.array(hi), gain=np.repeat(gain[None], len(pieces), axis=0),
         own=np.array(own, dtype=np.int64), nominal=np.array(values),
     )
 
@@ -265,7 +267,7 @@ class TrackingEstimator:
             self.start(fresh, measured[fresh], variance[fresh])
         hyp = self.hypotheses
         track(
-            hyp.coefficients, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
+            hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
             np.arange(n), measured, np.ascontiguousarray(signals.load, dtype=float),
             np.ascontiguousarray(signals.load_rate, dtype=float), variance, self.z, self.P, self.log_likelihood,
         )

@@ -158,13 +158,15 @@ def speed(n_systems: int, repeats: int = 20) -> float:
 
 
 def tune() -> None:
-    """Grid over theta_noise x drift_noise on the k ramp's tuning seeds (10..12); prints each setting's scores."""
+    """Grid over theta_noise x drift_noise on the tuning seeds 10..12 of the three ramps; prints each setting's scores."""
     base = TrackingConfig()
-    for theta_noise, drift_noise in itertools.product((0.0, 1e-4, 3e-4), (5e-6, 2e-5, 5e-5)):
+    for theta_noise, drift_noise in itertools.product((1e-4, 3e-4, 1e-3), (3e-5, 1e-4, 3e-4)):
         config = replace(base, theta_noise=theta_noise, drift_noise=drift_noise)
-        r = accuracy(range(10, 13), config, ("spring_k_ramp",))["k"]
-        print(f"theta_noise {theta_noise:g} drift_noise {drift_noise:g}: median {np.median(r['error']):.4f} max {np.max(r['error']):.4f} "
-              f"alpha-lambda {r['hit'].mean():.2f} coverage {r['covered'].mean():.2f}")
+        results = accuracy(range(10, 13), config)
+        scores = "; ".join(
+            f"{p} {np.median(r['error']):.4f}/{np.max(r['error']):.4f} al {r['hit'].mean():.2f} cov {r['covered'].mean():.2f}" for p, r in results.items()
+        )
+        print(f"theta_noise {theta_noise:g} drift_noise {drift_noise:g}: {scores}", flush=True)
 
 
 def main() -> None:

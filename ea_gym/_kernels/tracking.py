@@ -20,27 +20,36 @@ LOG_2PI = math.log(2.0 * math.pi)
 
 
 @numba.njit(cache=True)
-def chebyshev_matrices(coefficients: np.ndarray, lo: float, hi: float, theta: float, value: np.ndarray, slope: np.ndarray) -> None:
-    """value = sum_k c_k T_k(s), slope = its derivative in theta (per unit), s = theta mapped from [lo, hi]
-    to [-1, 1] and clamped there (outside, the matrices and slope at the nearer end).
+def chebyshev_matrices(
+    coefficients: np.ndarray, terms: int, lo: float, hi: float, theta: float, value: np.ndarray, slope: np.ndarray, basis: np.ndarray
+) -> None:
+    """value = sum_k c_k T_k(s) over the first ``terms`` coefficients, slope = its derivative in theta (per
+    unit), s = theta mapped from [lo, hi] to [-1, 1] and clamped there (outside: the nearer end's).
 
     Args:
         coefficients: (K, rows, cols) Chebyshev coefficients of every matrix entry.
+        basis: (2, K) workspace for T_k(s) and dT_k/dtheta.
     """
     width = hi - lo
     s = (2.0 * theta - (lo + hi)) / width if width > 0 else 0.0
     s = min(1.0, max(-1.0, s))
-    value[:] = 0.0
-    slope[:] = 0.0
-    t_prev, t_now = 1.0, s
-    d_prev, d_now = 0.0, 1.0
-    value += coefficients[0]
     scale = 2.0 / width if width > 0 else 0.0
-    for k in range(1, coefficients.shape[0]):
-        value += coefficients[k] * t_now
-        slope += coefficients[k] * (d_now * scale)
-        t_prev, t_now = t_now, 2.0 * s * t_now - t_prev
-        d_prev, d_now = d_now, 2.0 * t_prev + 2.0 * s * d_now - d_prev
+    basis[0, 0], basis[1, 0] = 1.0, 0.0
+    if terms > 1:
+        basis[0, 1], basis[1, 1] = s, 1.0
+    for k in range(2, terms):
+        basis[0, k] = 2.0 * s * basis[0, k - 1] - basis[0, k - 2]
+        basis[1, k] = 2.0 * basis[0, k - 1] + 2.0 * s * basis[1, k - 1] - basis[1, k - 2]
+    for i in range(value.shape[0]):
+        for j in range(value.shape[1]):
+            v = 0.0
+            d = 0.0
+            for k in range(terms):
+                c = coefficients[k, i, j]
+                v += c * basis[0, k]
+                d += c * basis[1, k]
+            value[i, j] = v
+            slope[i, j] = d * scale
 
 
 @numba.njit(cache=True)
@@ -90,37 +99,116 @@ def predict(
 
 
 @numba.njit(cache=True)
-def correct(z: np.ndarray, P: np.ndarray, y: np.ndarray, r: np.ndarray, gain: np.ndarray, own: int) -> float:
+def cholesky_solve(L: np.ndarray, b: np.ndarray) -> None:
+    """b = (L L^T)^-1 b in place, column by column; L lower triangular (m, m), b (m, k)."""
+    m = L.shape[0]
+    for c in range(b.shape[1]):
+        for i in range(m):
+            acc = b[i, c]
+            for j in range(i):
+                acc -= L[i, j] * b[j, c]
+            b[i, c] = acc / L[i, i]
+        for i in range(m - 1, -1, -1):
+            acc = b[i, c]
+            for j in range(i + 1, m):
+                acc -= L[j, i] * b[j, c]
+            b[i, c] = acc / L[i, i]
+
+
+@numba.njit(cache=True)
+def cholesky(S: np.ndarray, L: np.ndarray) -> None:
+    """L lower triangular with L L^T = S (m, m)."""
+    m = S.shape[0]
+    L[:] = 0.0
+    for i in range(m):
+        for j in range(i + 1):
+            acc = S[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            L[i, j] = math.sqrt(acc) if i == j else acc / L[j, j]
+
+
+@numba.njit(cache=True)
+def correct(z: np.ndarray, P: np.ndarray, y: np.ndarray, r: np.ndarray, gain: np.ndarray, own: int, work: np.ndarray) -> float:
     """Measurement update of one filter (Joseph form) from y = g x + noise of variances r; returns the
-    innovation's log-density. ``own``: the state whose gain is 1 / theta (-1: none)."""
+    innovation's log-density. ``own``: the state whose gain is 1 / theta (-1: none).
+
+    H has one nonzero per row (the state's gain) plus, on row ``own``, the theta column.
+    ``work``: (8 n, n) scratch rows.
+    """
     n = z.shape[0]
     nx = n - 2
-    H = np.zeros((nx, n))
-    nu = np.empty(nx)
+    g = work[0, :nx]
+    d = 0.0  # d y_own / d theta
     for i in range(nx):
-        g = gain[i]
-        if i == own:
-            g = 1.0 / z[nx]
-            H[i, nx] = -z[i] * g * g
-        H[i, i] = g
-        nu[i] = y[i] - g * z[i]
-    PHt = P @ H.T
-    S = H @ PHt
+        g[i] = gain[i]
+    if own >= 0:
+        g[own] = 1.0 / z[nx]
+        d = -z[own] * g[own] * g[own]
+    # PHt (n, nx): column i = g_i P[:, i] (+ d P[:, nx] on own)
+    PHt = work[1 : 1 + n, :nx]
+    for a in range(n):
+        for i in range(nx):
+            PHt[a, i] = g[i] * P[a, i] + (d * P[a, nx] if i == own else 0.0)
+    S = work[1 + n : 1 + n + nx, :nx]
     for i in range(nx):
+        for j in range(nx):
+            S[i, j] = g[i] * PHt[i, j] + (d * PHt[nx, j] if i == own else 0.0)
         S[i, i] += r[i]
-    L = np.linalg.cholesky(S)
-    # solve S a = nu and S K^T = H P through the Cholesky factor
-    a = np.linalg.solve(L.T, np.linalg.solve(L, nu))
-    K = np.linalg.solve(L.T, np.linalg.solve(L, PHt.T)).T
+    L = work[1 + n + nx : 1 + n + 2 * nx, :nx]
+    cholesky(S, L)
+    # innovation nu and a = S^-1 nu; Kt = S^-1 PHt^T (nx, n)
+    nu = work[1 + n + 2 * nx : 2 + n + 2 * nx, :nx]
+    for i in range(nx):
+        nu[0, i] = y[i] - g[i] * z[i]
+    a = work[2 + n + 2 * nx : 3 + n + 2 * nx, :nx]
+    a[0, :] = nu[0, :]
+    cholesky_solve(L, a.T)
+    Kt = work[3 + n + 2 * nx : 3 + 2 * n + 2 * nx, :nx].T
+    Kt[:, :] = PHt.T
+    cholesky_solve(L, Kt)
     log_density = 0.0
     for i in range(nx):
-        log_density -= math.log(L[i, i]) + 0.5 * LOG_2PI
-        log_density -= 0.5 * nu[i] * a[i]
-    z += K @ nu
-    A = np.eye(n) - K @ H
-    KR = K * r
-    P[:] = A @ P @ A.T + KR @ K.T
+        log_density -= math.log(L[i, i]) + 0.5 * LOG_2PI + 0.5 * nu[0, i] * a[0, i]
+    joseph_update(z, P, Kt, g, d, own, nu[0], r, work[3 + 2 * n + 2 * nx :])
     return log_density
+
+
+@numba.njit(cache=True)
+def joseph_update(
+    z: np.ndarray, P: np.ndarray, Kt: np.ndarray, g: np.ndarray, d: float, own: int, nu: np.ndarray, r: np.ndarray, work: np.ndarray
+) -> None:
+    """z += K nu; P = (I - K H) P (I - K H)^T + K R K^T with K = Kt^T (H: gains g, and d on row ``own``'s theta column)."""
+    n = z.shape[0]
+    nx = n - 2
+    for a in range(n):
+        acc = 0.0
+        for i in range(nx):
+            acc += Kt[i, a] * nu[i]
+        z[a] += acc
+    A = work[:n, :n]
+    for a in range(n):
+        for b in range(n):
+            A[a, b] = 1.0 if a == b else 0.0
+        for i in range(nx):
+            A[a, i] -= Kt[i, a] * g[i]
+        if own >= 0:
+            A[a, nx] -= Kt[own, a] * d
+    T = work[n : 2 * n, :n]
+    for a in range(n):
+        for b in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc += A[a, c] * P[c, b]
+            T[a, b] = acc
+    for a in range(n):
+        for b in range(n):
+            acc = 0.0
+            for c in range(n):
+                acc += T[a, c] * A[b, c]
+            for i in range(nx):
+                acc += Kt[i, a] * r[i] * Kt[i, b]
+            P[a, b] = acc
 
 
 @numba.njit(cache=True)
@@ -137,7 +225,7 @@ def hermite_row(u0: float, u1: float, d0: float, d1: float, h: float, w: np.ndar
 
 @numba.njit(cache=True)
 def track(
-    coefficients: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
+    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
     state_noise: float, forget: float, h: float,
     systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
     z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
@@ -145,7 +233,7 @@ def track(
     """Run every hypothesis's filter of the listed systems over samples 1..L of their step (in place).
 
     Args:
-        coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma] per hypothesis.
+        coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma] per hypothesis; terms (H,): how many are used.
         lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``correct``.
         q: (H, 2) process-noise variances per sample of theta and drift.
         state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
@@ -163,6 +251,8 @@ def track(
     F = np.empty((n, n))
     T = np.empty((n, n))
     qf = np.empty(n)
+    work = np.empty((8 * n, n))
+    basis = np.empty((2, coefficients.shape[1]))
     for s in range(systems.shape[0]):
         row = systems[s]
         for f in range(n_hyp):
@@ -171,11 +261,11 @@ def track(
             qf[nx] = q[f, 0]
             qf[nx + 1] = q[f, 1]
             for k in range(1, measured.shape[2]):
-                chebyshev_matrices(coefficients[f], lo[f], hi[f], zf[nx], M, dM)
+                chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], zf[nx], M, dM, basis)
                 for i in range(nx):
                     g = 1.0 / zf[nx] if i == own[f] else gain[f, i]
                     qf[i] = state_noise * variance[s, i] / (g * g)
                 hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, w)
                 predict(zf, Pf, M, dM, w, h, qf, F, T)
-                density = correct(zf, Pf, measured[s, :, k], variance[s], gain[f], own[f])
+                density = correct(zf, Pf, measured[s, :, k], variance[s], gain[f], own[f], work)
                 log_likelihood[row, f] = forget * log_likelihood[row, f] + density
