@@ -171,7 +171,8 @@ def hypothesis_models(model: SystemModel, degradable: Sequence[str], h: float) -
     for f, piece in enumerate(pieces):
         coefficients[f, : len(piece)] = piece
     return HypothesisModels(
-        coefficients=coefficients, terms=np.array([len(p) for p in pieces], dtype=np.int64), lo=np.array(lo), hi=np.array(hi), gain=np.repeat(gain[None], len(pieces), axis=0),
+        coefficients=coefficients, terms=np.array([len(p) for p in pieces], dtype=np.int64), lo=np.array(lo), hi=np.array(hi),
+        gain=np.repeat(gain[None], len(pieces), axis=0),
         own=np.array(own, dtype=np.int64), nominal=np.array(values),
     )
 

@@ -50,6 +50,12 @@ class Signals:
     truth: np.ndarray
 
 
+def fault_parameter(scenario: Scenario) -> str:
+    if scenario.fault is None:
+        raise ValueError("the scenario has no fault")
+    return scenario.fault.parameter
+
+
 def scenario_signals(scenario: Scenario, seed: int) -> Signals:
     """The chain harness's signals: plant, clean measurement, then noise per step from ``seed``."""
     model, t = scenario.model, scenario.times()
@@ -61,7 +67,7 @@ def scenario_signals(scenario: Scenario, seed: int) -> Signals:
     step = int(round(STEP * scenario.sample_rate))
     starts = list(range(0, len(t) - step, step))
     measured = np.stack([add_sensor_noise(clean[..., s : s + step + 1], scenario.noise, rng) for s in starts])
-    index = model.parameter_names.index(scenario.fault.parameter)
+    index = model.parameter_names.index(fault_parameter(scenario))
     ends = np.array([s + step for s in starts])
     return Signals(
         measured, np.stack([u[:, s : s + step + 1] for s in starts]), np.stack([du[:, s : s + step + 1] for s in starts]),
@@ -71,7 +77,7 @@ def scenario_signals(scenario: Scenario, seed: int) -> Signals:
 
 def true_end_of_life(scenario: Scenario) -> tuple[float, float]:
     """Onset (s) and the time the true parameter first leaves its safe limits (s)."""
-    name = scenario.fault.parameter
+    name = fault_parameter(scenario)
     t = np.linspace(0.0, scenario.duration, 100001)
     values = scenario.parameters_at(t)[:, scenario.model.parameter_names.index(name)]
     lower, upper = scenario.model.safe_limits[name]
@@ -82,8 +88,8 @@ def true_end_of_life(scenario: Scenario) -> tuple[float, float]:
 def track_run(scenario: Scenario, signals: Signals, config: TrackingConfig) -> dict[str, np.ndarray]:
     """The true hypothesis's estimate, RUL and interval, and the evidence ranking, at every step end."""
     estimator = TrackingEstimator(scenario.model, scenario.sample_rate, scenario.noise, 1, config=config)
-    j = estimator.degradable.index(scenario.fault.parameter)
-    limits = np.array(scenario.model.safe_limits[scenario.fault.parameter])
+    j = estimator.degradable.index(fault_parameter(scenario))
+    limits = np.asarray(scenario.model.safe_limits[fault_parameter(scenario)], dtype=float)
     rows: dict[str, list] = {"value": [], "rul": [], "low": [], "high": [], "best": []}
     suspects = np.ones((1, len(estimator.degradable)), dtype=bool)
     for k in range(len(signals.t)):
@@ -118,8 +124,9 @@ def accuracy(seeds: range, config: TrackingConfig, names: tuple[str, ...] = NAME
     results: dict[str, dict[str, np.ndarray]] = {}
     for name in names:
         scenario = load_scenario(SCENARIOS / f"{name}.json")
-        parts = [evaluate(scenario, s, track_run(scenario, s, config)) for s in (scenario_signals(scenario, scenario.sensor_seed + 100 * i) for i in seeds)]
-        results[scenario.fault.parameter] = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+        runs = (scenario_signals(scenario, scenario.sensor_seed + 100 * i) for i in seeds)
+        parts = [evaluate(scenario, s, track_run(scenario, s, config)) for s in runs]
+        results[fault_parameter(scenario)] = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
     return results
 
 
@@ -164,7 +171,8 @@ def tune() -> None:
         config = replace(base, theta_noise=theta_noise, drift_noise=drift_noise)
         results = accuracy(range(10, 13), config)
         scores = "; ".join(
-            f"{p} {np.median(r['error']):.4f}/{np.max(r['error']):.4f} al {r['hit'].mean():.2f} cov {r['covered'].mean():.2f}" for p, r in results.items()
+            f"{p} {np.median(r['error']):.4f}/{np.max(r['error']):.4f} al {r['hit'].mean():.2f} cov {r['covered'].mean():.2f}"
+            for p, r in results.items()
         )
         print(f"theta_noise {theta_noise:g} drift_noise {drift_noise:g}: {scores}", flush=True)
 

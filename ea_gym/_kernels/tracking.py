@@ -147,9 +147,9 @@ def correct(z: np.ndarray, P: np.ndarray, y: np.ndarray, r: np.ndarray, gain: np
         d = -z[own] * g[own] * g[own]
     # PHt (n, nx): column i = g_i P[:, i] (+ d P[:, nx] on own)
     PHt = work[1 : 1 + n, :nx]
-    for a in range(n):
+    for row in range(n):
         for i in range(nx):
-            PHt[a, i] = g[i] * P[a, i] + (d * P[a, nx] if i == own else 0.0)
+            PHt[row, i] = g[i] * P[row, i] + (d * P[row, nx] if i == own else 0.0)
     S = work[1 + n : 1 + n + nx, :nx]
     for i in range(nx):
         for j in range(nx):

@@ -1,0 +1,151 @@
+"""The tracking estimator: its compiled filter bank against plain numpy, recovery of a constant parameter
+and of a ramp's slope from noise-free signals, and the linear-drift End of Life on hand-computed cases."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from numpy.polynomial import chebyshev
+from scipy.stats import norm
+
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.loads import Sine, SinesLoad
+from ea_gym.models import spring_mass_damper
+from ea_gym.plant import run_model
+from ea_gym.sensors import measure
+from ea_gym.tracking import StepSignals, TrackingConfig, TrackingEstimator, drift_end_of_life
+
+RATE = 100.0
+
+
+def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, variance, z, P, ll) -> None:
+    """The kernel's arithmetic in plain numpy: every system and hypothesis over samples 1..L, in place."""
+    hyp, h = est.hypotheses, est.h
+    nx = measured.shape[1]
+    for s, f in np.ndindex(z.shape[:2]):
+        for k in range(1, measured.shape[2]):
+            theta = z[s, f, nx]
+            width = hyp.hi[f] - hyp.lo[f]
+            x = np.clip((2 * theta - hyp.lo[f] - hyp.hi[f]) / width, -1, 1) if width > 0 else 0.0
+            c = hyp.coefficients[f, : hyp.terms[f]]
+            M = chebyshev.chebval(x, c)
+            dM = chebyshev.chebval(x, chebyshev.chebder(c, axis=0)) * 2 / width if len(c) > 1 else np.zeros_like(M)
+            u0, u1, d0, d1 = load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k]
+            slope = (u1 - u0) / h
+            w = np.array([u0, d0, 2 * (3 * slope - 2 * d0 - d1) / h, 6 * (d0 + d1 - 2 * slope) / h**2])
+            g = hyp.gain[f].copy()
+            if hyp.own[f] >= 0:
+                g[hyp.own[f]] = 1 / theta
+            F = np.zeros((nx + 2, nx + 2))
+            F[:nx, :nx] = M[:, :nx]
+            F[:nx, nx] = dM[:, :nx] @ z[s, f, :nx] + dM[:, nx:] @ w
+            F[nx, nx] = F[nx + 1, nx + 1] = 1
+            F[nx, nx + 1] = h
+            z[s, f, :nx] = M[:, :nx] @ z[s, f, :nx] + M[:, nx:] @ w
+            z[s, f, nx] += h * z[s, f, nx + 1]
+            Q = np.diag(np.concatenate([est.config.state_noise * variance[s] / g**2, est.process_noise[f]]))
+            P[s, f] = F @ P[s, f] @ F.T + Q
+            g = hyp.gain[f].copy()
+            H = np.zeros((nx, nx + 2))
+            if hyp.own[f] >= 0:
+                g[hyp.own[f]] = 1 / z[s, f, nx]
+                H[hyp.own[f], nx] = -z[s, f, hyp.own[f]] / z[s, f, nx] ** 2
+            H[np.arange(nx), np.arange(nx)] = g
+            nu = measured[s, :, k] - g * z[s, f, :nx]
+            S = H @ P[s, f] @ H.T + np.diag(variance[s])
+            K = P[s, f] @ H.T @ np.linalg.inv(S)
+            ll[s, f] = est.forget * ll[s, f] - 0.5 * (nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(S)) + nx * np.log(2 * np.pi))
+            z[s, f] += K @ nu
+            A = np.eye(nx + 2) - K @ H
+            P[s, f] = A @ P[s, f] @ A.T + K @ np.diag(variance[s]) @ K.T
+
+
+def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0):
+    """Step windows (1 s) of a sine-driven spring-mass-damper whose parameters follow ``parameters(t)``."""
+    model = spring_mass_damper()
+    t = np.arange(int(duration * RATE) + 1) / RATE
+    load = SinesLoad(10.0, (Sine(4.0, 0.25), Sine(2.0, 0.7), Sine(1.0, 1.4)))
+    plant = run_model(model, t, load, parameters)
+    rng = np.random.default_rng(seed)
+    clean = measure(Monitor(model, 1 / RATE), plant.parameters[None], plant.states[None], noise, rng)
+    u, du = load.value(t)[None], load.derivative(t)[None]
+    step = int(RATE)
+    return model, [
+        StepSignals(clean[..., s : s + step + 1], u[:, s : s + step + 1], du[:, s : s + step + 1], t[None, s + step])
+        for s in range(0, len(t) - step, step)
+    ]
+
+
+def test_kernel_matches_numpy_reference() -> None:
+    model, steps = plant_steps(None, 3.0, noise=0.01)
+    est = TrackingEstimator(model, RATE, 0.01, 2, config=TrackingConfig(state_noise=1e-3, evidence_memory=50.0))
+    both = [
+        StepSignals(np.concatenate([s.measured, 1.01 * s.measured]), np.repeat(s.load, 2, 0), np.repeat(s.load_rate, 2, 0), np.repeat(s.t, 2))
+        for s in steps
+    ]
+    suspects = np.ones((2, 3), dtype=bool)
+    est.update(both[0], np.zeros(2, dtype=bool), suspects)
+    est.z[:, 1:, 2] *= 1.03  # off nominal, so that every theta-slope matters
+    z, P, ll = est.z.copy(), est.P.copy(), est.log_likelihood.copy()
+    for s in both[1:]:
+        variance = est.measurement_variance(s.measured)
+        tracking_step_reference(est, s.measured, s.load, s.load_rate, variance, z, P, ll)
+        est.update(s, np.ones(2, dtype=bool), suspects)
+    np.testing.assert_allclose(est.z, z, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(est.P, P, rtol=1e-8, atol=1e-10 * np.abs(P).max())
+    np.testing.assert_allclose(est.log_likelihood, ll, rtol=1e-10)
+
+
+def run_estimator(model, steps, config: TrackingConfig):
+    est = TrackingEstimator(model, RATE, 0.0, 1, config=config)
+    for s in steps:
+        out = est.update(s, np.ones(1, dtype=bool), np.ones((1, 3), dtype=bool))
+    return est, out
+
+
+def test_noise_free_run_recovers_a_constant_parameter() -> None:
+    model = spring_mass_damper()
+    k = model.parameter_names.index("k")
+    theta = model.parameter_vector({"k": 95.0})
+    model, steps = plant_steps(lambda t: np.broadcast_to(theta, t.shape + theta.shape), 30.0)
+    _, out = run_estimator(model, steps, replace(TrackingConfig(), theta_prior=0.1))
+    j = 1  # degradable order m, k, b
+    assert k == 1
+    assert abs(out.value[0, j] - 95.0) < 0.01
+    assert abs(out.drift[0, j]) < 1e-3
+    assert np.argmax(out.log_evidence[0]) == j + 1
+
+
+def test_noise_free_run_recovers_a_ramp_slope() -> None:
+    model = spring_mass_damper()
+
+    def parameters(t: np.ndarray) -> np.ndarray:
+        theta = np.repeat(model.parameter_vector()[None], len(t), 0)
+        theta[:, 1] = 100.0 - 0.2 * np.clip(t - 10.0, 0.0, None)
+        return theta
+
+    model, steps = plant_steps(parameters, 60.0)
+    _, out = run_estimator(model, steps, TrackingConfig())
+    assert out.drift[0, 1] == pytest.approx(-0.2, rel=0.02)
+    assert out.value[0, 1] == pytest.approx(90.0, abs=0.05)
+
+
+def test_drift_end_of_life_hand_computed() -> None:
+    limits = np.array([85.0, 105.0])
+    # certain values: the line 100 - 0.5 s reaches 85 in 30 s
+    eol, low, high = drift_end_of_life(np.array(100.0), np.array(-0.5), np.zeros((2, 2)), limits, np.array(10.0))
+    assert (eol, low, high) == (40.0, 40.0, 40.0)
+    # uncertain: at the interval's ends, P(crossed) = 2.5 % and 97.5 % under N(100 - 0.5 tau, 1 + 0.0025 tau^2)
+    cov = np.diag([1.0, 0.05**2])
+    eol, low, high = drift_end_of_life(np.array(100.0), np.array(-0.5), cov, limits, np.array(10.0))
+    for end, p in ((low, 0.025), (high, 0.975)):
+        tau = end - 10.0
+        assert norm.cdf((85.0 - (100.0 - 0.5 * tau)) / np.sqrt(1.0 + 0.0025 * tau**2)) == pytest.approx(p, abs=1e-9)
+    assert low < eol == 40.0 < high
+    # an unresolved drift (|drift| / std < 1.96): no upper bound; a drift away from both limits: no End of Life
+    _, low, high = drift_end_of_life(np.array(100.0), np.array(-0.05), cov, limits, np.array(0.0))
+    assert np.isinf(high) and 0 < low < np.inf
+    eol, _, _ = drift_end_of_life(np.array([100.0]), np.array([0.0]), np.zeros((1, 2, 2)), limits[None], np.array([0.0]))
+    assert np.isinf(eol[0])
