@@ -15,6 +15,7 @@ from typing import Literal, TypeVar
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
 
+from ea_gym._kernels.activity import interval_activities
 from ea_gym.bondgraph.elements import CForm, Kind
 
 Signals = TypeVar("Signals", np.ndarray, Mapping[str, np.ndarray])
@@ -77,8 +78,9 @@ def _interval_activity(power: np.ndarray, sample_period: float) -> np.ndarray:
     """|P| integrated over each sample interval by the trapezoidal rule (J), shape (..., T)."""
     if not np.all(np.isfinite(power)):
         raise ValueError("power contains NaN or inf; Energy Activity needs finite signals")
-    magnitude = np.abs(power)
-    return 0.5 * (magnitude[..., :-1] + magnitude[..., 1:]) * sample_period
+    lead, samples = power.shape[:-1], power.shape[-1]
+    rows = np.ascontiguousarray(power, dtype=float).reshape(int(np.prod(lead)), samples)
+    return interval_activities(rows, float(sample_period)).reshape(lead + (max(samples - 1, 0),))
 
 
 def window_samples(window: float, sample_period: float) -> int:

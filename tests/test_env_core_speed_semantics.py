@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 import ea_gym  # noqa: F401 - registers the environments
+from ea_gym._kernels.propagation import simulate_hermite
 from ea_gym.bondgraph.simulation import (
     Discretization,
-    _simulate_hermite,
     discretize,
     hermite_coefficients,
     propagate,
@@ -66,7 +66,7 @@ def test_fused_kernel_handles_several_inputs_and_shared_matrices():
     expected = propagate(Discretization(Phi[index][:, None], Gamma[index][:, None]), hermite_coefficients(u, du, h), x0)
     signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
     gain = rng.uniform(0.5, 2.0, (n, nx))
-    _simulate_hermite(Phi, Gamma, index, u, du, h, x0, gain, signals, last)
+    simulate_hermite(Phi, Gamma, index, u, du, h, x0, gain, signals, last)
     np.testing.assert_array_equal(signals, expected.transpose(0, 2, 1) * gain[:, :, None])
     np.testing.assert_array_equal(last, expected[:, -1])
 

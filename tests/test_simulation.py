@@ -7,7 +7,8 @@ from scipy import linalg, signal
 from scipy.integrate import solve_ivp
 
 from ea_gym import models
-from ea_gym.bondgraph.simulation import SYSTEMS_BLOCK, Discretization, _simulate_hermite, expm, hermite_coefficients, propagate
+from ea_gym._kernels.propagation import SYSTEMS_BLOCK, simulate_hermite
+from ea_gym.bondgraph.simulation import Discretization, expm, hermite_coefficients, propagate
 from ea_gym.loads import ConstantLoad, Sine, SinesLoad, multisine_rotations, rotated_multisine
 from ea_gym.plant import run_model
 
@@ -294,7 +295,7 @@ def _hermite_states(Phi, Gamma, index, u, du, h, x0):
     """The blocked kernel's states (N, T, nx) at unit gains; its last states must be the final samples."""
     n, samples, nx = len(x0), u.shape[1], Phi.shape[1]
     signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
-    _simulate_hermite(Phi, Gamma, index, u, du, h, x0, np.ones((n, nx)), signals, last)
+    simulate_hermite(Phi, Gamma, index, u, du, h, x0, np.ones((n, nx)), signals, last)
     np.testing.assert_array_equal(last, signals[..., -1])
     return signals.transpose(0, 2, 1)
 

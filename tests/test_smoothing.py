@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 from scipy.signal import savgol_filter
 
-from ea_gym.diagnosis.smoothing import LANES, SavitzkyGolay, filter_lanes
+from ea_gym._kernels.smoothing import LANES, filter_lanes
+from ea_gym.diagnosis.smoothing import SavitzkyGolay
 
 H = 0.01  # sample period (s)
 

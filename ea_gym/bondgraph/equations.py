@@ -12,7 +12,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 
 from ea_gym.bondgraph.causality import Causality, assign_causality
@@ -222,48 +221,3 @@ class StateSpaceModel:
             effort[name] = bond_values[..., e]
             flow[name] = float(sign) * bond_values[..., f]
         return effort, flow
-
-
-@numba.njit(cache=True)
-def bond_powers(
-    signals: np.ndarray, scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray, effort: np.ndarray, flow: np.ndarray, sign: np.ndarray
-) -> np.ndarray:
-    """Effort times flow of chosen bond ends at every sample, from energy variables and one input.
-
-    Args:
-        signals: (M, nx + 1, L): nx signals, x = ``scale`` x signal, then the input u.
-        Cy, Dy: (2 n_bonds, nx) and (2 n_bonds,): bond values z = Cy x + Dy u.
-        effort, flow, sign: (E,): element e's power is z[effort[e]] (sign[e] z[flow[e]]).
-
-    Returns:
-        (M, E, L); the same arithmetic as the matrix product summed over x in order, then the input's term.
-    """
-    M, channels, L = signals.shape
-    nx = channels - 1
-    E = len(effort)
-    out = np.empty((M, E, L))
-    # loops over time innermost, which vectorize; ze, zf accumulate as z = sum_s Cy x_s + Dy u does
-    x = np.empty((nx, L))
-    ze = np.empty(L)
-    zf = np.empty(L)
-    for m in range(M):
-        for s in range(nx):
-            c = scale[s]
-            for t in range(L):
-                x[s, t] = signals[m, s, t] * c
-        u = signals[m, nx]
-        for e in range(E):
-            a, b = effort[e], flow[e]
-            ze[:] = 0.0
-            zf[:] = 0.0
-            for s in range(nx):
-                ca, cb = Cy[a, s], Cy[b, s]
-                xs = x[s]
-                for t in range(L):
-                    ze[t] += ca * xs[t]
-                    zf[t] += cb * xs[t]
-            da, db, sg = Dy[a], Dy[b], sign[e]
-            o = out[m, e]
-            for t in range(L):
-                o[t] = (ze[t] + da * u[t]) * (sg * (zf[t] + db * u[t]))
-    return out

@@ -13,10 +13,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-import numba
 import numpy as np
 from numpy.polynomial import chebyshev
 
+from ea_gym._kernels.expm import expm_batch
+from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym.bondgraph.equations import StateSpaceModel
 from ea_gym.threads import single_threaded_blas
 
@@ -32,99 +33,6 @@ class Discretization:
     Gamma: np.ndarray
 
 
-#: Coefficients b_0..b_13 of the [13/13] Pade approximant of exp (Higham 2005, Table 2.2).
-_PADE13 = np.array([
-    64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0, 129060195264000.0,
-    10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0, 40840800.0, 960960.0, 16380.0, 182.0, 1.0,
-])
-#: Largest 1-norm for which the [13/13] approximant is exact to double precision (Higham 2005, Table 2.3).
-_THETA13 = 5.371920351148152
-
-
-@numba.njit(cache=True)
-def _matmul(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> None:
-    """c = a @ b; explicit loops, since a BLAS call costs more than the product for matrices this small."""
-    n = a.shape[0]
-    c[:] = 0.0
-    for i in range(n):
-        for k in range(n):
-            aik = a[i, k]
-            for j in range(n):
-                c[i, j] += aik * b[k, j]
-
-
-@numba.njit(cache=True)
-def _solve(a: np.ndarray, b: np.ndarray) -> None:
-    """b = a^-1 b by Gaussian elimination with partial pivoting; a is overwritten."""
-    n = a.shape[0]
-    for k in range(n):
-        p = k
-        for i in range(k + 1, n):
-            if abs(a[i, k]) > abs(a[p, k]):
-                p = i
-        if p != k:
-            for j in range(n):
-                a[k, j], a[p, j] = a[p, j], a[k, j]
-                b[k, j], b[p, j] = b[p, j], b[k, j]
-        for i in range(k + 1, n):
-            f = a[i, k] / a[k, k]
-            for j in range(k + 1, n):
-                a[i, j] -= f * a[k, j]
-            for j in range(n):
-                b[i, j] -= f * b[k, j]
-    for k in range(n - 1, -1, -1):
-        for j in range(n):
-            acc = b[k, j]
-            for i in range(k + 1, n):
-                acc -= a[k, i] * b[i, j]
-            b[k, j] = acc / a[k, k]
-
-
-@numba.njit(cache=True)
-def _pade_polynomial(A2: np.ndarray, A4: np.ndarray, A6: np.ndarray, c: np.ndarray, T: np.ndarray, out: np.ndarray) -> None:
-    """out = A6 (c6 A6 + c5 A4 + c4 A2) + c3 A6 + c2 A4 + c1 A2 + c0 I: the even or odd half of the
-    [13/13] Pade approximant's coefficients (``_PADE13[0::2]`` or ``[1::2]``); T is a workspace."""
-    T[:] = c[6] * A6 + c[5] * A4 + c[4] * A2
-    _matmul(A6, T, out)
-    out += c[3] * A6 + c[2] * A4 + c[1] * A2
-    for i in range(out.shape[0]):
-        out[i, i] += c[0]
-
-
-@numba.njit(cache=True)
-def _expm(Z: np.ndarray) -> np.ndarray:
-    """e^Z for each of the (M, n, n) matrices: scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
-    odd, even = _PADE13[1::2], _PADE13[0::2]
-    n = Z.shape[1]
-    out = np.empty_like(Z)
-    # one workspace for all matrices: allocations would cost more than the arithmetic
-    A, A2, A4, A6, T, W, U, V = np.empty((8, n, n))
-    for k in range(Z.shape[0]):
-        A[:] = Z[k]
-        norm = np.abs(A).sum(axis=0).max()
-        s = 0
-        if norm > _THETA13:
-            s = int(np.ceil(np.log2(norm / _THETA13)))
-            A *= 0.5**s
-        _matmul(A, A, A2)
-        _matmul(A2, A2, A4)
-        _matmul(A4, A2, A6)
-        # U = A [A6 (b13 A6 + b11 A4 + b9 A2) + b7 A6 + b5 A4 + b3 A2 + b1 I]
-        _pade_polynomial(A2, A4, A6, odd, T, W)
-        _matmul(A, W, U)
-        # V = A6 (b12 A6 + b10 A4 + b8 A2) + b6 A6 + b4 A4 + b2 A2 + b0 I
-        _pade_polynomial(A2, A4, A6, even, T, V)
-        # r = (V - U)^-1 (V + U), then squared s times
-        T[:] = V - U
-        W[:] = V + U
-        _solve(T, W)
-        for _ in range(s):
-            _matmul(W, W, T)
-            W[:] = T
-        out[k] = W
-    return out
-
-
 def expm(Z: np.ndarray) -> np.ndarray:
     """e^Z over the last two axes of Z (any leading batch shape), accurate to round-off.
 
@@ -132,7 +40,7 @@ def expm(Z: np.ndarray) -> np.ndarray:
     scipy loops over a batch in Python, matrix by matrix, which this compiled loop avoids.
     """
     flat = np.ascontiguousarray(Z, dtype=float).reshape((-1,) + Z.shape[-2:])
-    return _expm(flat).reshape(Z.shape)
+    return expm_batch(flat).reshape(Z.shape)
 
 
 def discretize(A: np.ndarray, B: np.ndarray, h: float) -> Discretization:
@@ -173,25 +81,6 @@ def hermite_coefficients(u: np.ndarray, du: np.ndarray, h: float) -> np.ndarray:
     return np.concatenate([u0, d0, 2.0 * c2, 6.0 * c3], axis=-1)
 
 
-@numba.njit(cache=True)
-def _propagate(Phi: np.ndarray, Gamma: np.ndarray, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
-    n_sys, n_steps, nx = w.shape[0], w.shape[1], x0.shape[1]
-    m = w.shape[2]
-    x = np.empty((n_sys, n_steps + 1, nx))
-    for s in range(n_sys):
-        x[s, 0] = x0[s]
-        for k in range(n_steps):
-            kp = k if Phi.shape[1] > 1 else 0
-            for i in range(nx):
-                acc = 0.0
-                for j in range(nx):
-                    acc += Phi[s, kp, i, j] * x[s, k, j]
-                for j in range(m):
-                    acc += Gamma[s, kp, i, j] * w[s, k, j]
-                x[s, k + 1, i] = acc
-    return x
-
-
 def propagate(d: Discretization, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
     """Run the recursion x[k+1] = Phi[k] x[k] + Gamma[k] w[k] (compiled; no Python loop over samples).
 
@@ -203,7 +92,7 @@ def propagate(d: Discretization, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
     Returns:
         states at every sample, (N, T + 1, nx).
     """
-    return _propagate(
+    return propagate_states(
         np.ascontiguousarray(d.Phi), np.ascontiguousarray(d.Gamma), np.ascontiguousarray(w), np.ascontiguousarray(x0, dtype=float)
     )
 
@@ -320,84 +209,6 @@ def simulate_linear(
         return x[0], mats.bond_values(x, u[None])[0]
 
 
-SYSTEMS_BLOCK = 128  # systems propagated side by side; their lanes are the SIMD axis of the recursion
-SAMPLES_CHUNK = 16  # samples of a block's lane-major copies
-
-
-@numba.njit(cache=True)
-def _simulate_hermite(
-    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray,
-    gain: np.ndarray, signals: np.ndarray, last: np.ndarray,
-) -> None:
-    """``propagate`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s and the Hermite
-    coefficients of ``hermite_coefficients`` computed on the fly, in the same arithmetic (same result).
-    Writes gain[s, i] x_i of system s at every sample to signals (N, nx, T) and its states at the
-    last sample to last (N, nx).
-
-    One system's recursion is a chain of dependent sums; ``SYSTEMS_BLOCK`` systems run side by side
-    with the system innermost, so the chains of different systems fill the SIMD lanes. Every system
-    takes the same operations in the same order as alone, so its result does not depend on the batch.
-    """
-    n_sys, n_samples, nu = u.shape
-    nx = Phi.shape[1]
-    m = Gamma.shape[2]
-    h2 = h * h
-    B = min(SYSTEMS_BLOCK, n_sys)
-    # lane-major copies, system last, of SAMPLES_CHUNK samples at a time: they stay in the first-level
-    # cache, and so do the lines of the system-major arrays that the copies' loops (lanes innermost,
-    # twice as fast as samples innermost) stride across
-    P = np.empty((nx, nx, B))
-    G = np.empty((nx, m, B))
-    load = np.empty((SAMPLES_CHUNK + 1, 2, nu, B))
-    w = np.empty((m, B))
-    X = np.empty((SAMPLES_CHUNK + 1, nx, B))
-    for s0 in range(0, n_sys, B):
-        lanes = min(B, n_sys - s0)
-        for b in range(lanes):
-            for i in range(nx):
-                X[0, i, b] = x0[s0 + b, i]
-                signals[s0 + b, i, 0] = x0[s0 + b, i] * gain[s0 + b, i]
-                for j in range(nx):
-                    P[i, j, b] = Phi[index[s0 + b], i, j]
-                for j in range(m):
-                    G[i, j, b] = Gamma[index[s0 + b], i, j]
-        for k0 in range(0, n_samples - 1, SAMPLES_CHUNK):
-            steps = min(SAMPLES_CHUNK, n_samples - 1 - k0)
-            for k in range(steps + 1):
-                for c in range(nu):
-                    for b in range(lanes):
-                        load[k, 0, c, b] = u[s0 + b, k0 + k, c]
-                        load[k, 1, c, b] = du[s0 + b, k0 + k, c]
-            for k in range(steps):
-                for c in range(nu):
-                    for b in range(lanes):
-                        u0, u1, d0, d1 = load[k, 0, c, b], load[k + 1, 0, c, b], load[k, 1, c, b], load[k + 1, 1, c, b]
-                        slope = (u1 - u0) / h
-                        c2 = (3.0 * slope - 2.0 * d0 - d1) / h
-                        c3 = (d0 + d1 - 2.0 * slope) / h2
-                        w[c, b] = u0
-                        w[nu + c, b] = d0
-                        w[2 * nu + c, b] = 2.0 * c2
-                        w[3 * nu + c, b] = 6.0 * c3
-                for i in range(nx):
-                    acc = X[k + 1, i]
-                    acc[:lanes] = 0.0
-                    for j in range(nx):
-                        for b in range(lanes):
-                            acc[b] += P[i, j, b] * X[k, j, b]
-                    for j in range(m):
-                        for b in range(lanes):
-                            acc[b] += G[i, j, b] * w[j, b]
-            for k in range(1, steps + 1):
-                for i in range(nx):
-                    for b in range(lanes):
-                        signals[s0 + b, i, k0 + k] = X[k, i, b] * gain[s0 + b, i]
-            X[0] = X[steps]
-        for i in range(nx):
-            for b in range(lanes):
-                last[s0 + b, i] = X[0, i, b]
-
-
 def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The distinct rows of ``theta`` (N, P) and, for every row, the index of its copy among them.
 
@@ -466,7 +277,7 @@ def simulate_measured(
         distinct, index = unique_rows(theta)
         mats = model.matrices(distinct)
         step = discretize(mats.A, mats.B, sample_period)
-        _simulate_hermite(
+        simulate_hermite(
             np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma), index, np.ascontiguousarray(u),
             np.ascontiguousarray(du), float(sample_period), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float), signals, last,
         )

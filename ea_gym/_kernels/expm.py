@@ -1,0 +1,100 @@
+"""The matrix exponential of many small matrices: scaling and squaring with the [13/13] Pade
+approximant (Higham 2005), in compiled loops (``ea_gym.bondgraph.simulation.expm`` is its front).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+#: Coefficients b_0..b_13 of the [13/13] Pade approximant of exp (Higham 2005, Table 2.2).
+PADE13 = np.array([
+    64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0, 129060195264000.0,
+    10559470521600.0, 670442572800.0, 33522128640.0, 1323241920.0, 40840800.0, 960960.0, 16380.0, 182.0, 1.0,
+])
+#: Largest 1-norm for which the [13/13] approximant is exact to double precision (Higham 2005, Table 2.3).
+THETA13 = 5.371920351148152
+
+
+@numba.njit(cache=True)
+def matmul(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> None:
+    """c = a @ b; explicit loops, since a BLAS call costs more than the product for matrices this small."""
+    n = a.shape[0]
+    c[:] = 0.0
+    for i in range(n):
+        for k in range(n):
+            aik = a[i, k]
+            for j in range(n):
+                c[i, j] += aik * b[k, j]
+
+
+@numba.njit(cache=True)
+def solve(a: np.ndarray, b: np.ndarray) -> None:
+    """b = a^-1 b by Gaussian elimination with partial pivoting; a is overwritten."""
+    n = a.shape[0]
+    for k in range(n):
+        p = k
+        for i in range(k + 1, n):
+            if abs(a[i, k]) > abs(a[p, k]):
+                p = i
+        if p != k:
+            for j in range(n):
+                a[k, j], a[p, j] = a[p, j], a[k, j]
+                b[k, j], b[p, j] = b[p, j], b[k, j]
+        for i in range(k + 1, n):
+            f = a[i, k] / a[k, k]
+            for j in range(k + 1, n):
+                a[i, j] -= f * a[k, j]
+            for j in range(n):
+                b[i, j] -= f * b[k, j]
+    for k in range(n - 1, -1, -1):
+        for j in range(n):
+            acc = b[k, j]
+            for i in range(k + 1, n):
+                acc -= a[k, i] * b[i, j]
+            b[k, j] = acc / a[k, k]
+
+
+@numba.njit(cache=True)
+def pade_polynomial(A2: np.ndarray, A4: np.ndarray, A6: np.ndarray, c: np.ndarray, T: np.ndarray, out: np.ndarray) -> None:
+    """out = A6 (c6 A6 + c5 A4 + c4 A2) + c3 A6 + c2 A4 + c1 A2 + c0 I: the even or odd half of the
+    [13/13] Pade approximant's coefficients (``PADE13[0::2]`` or ``[1::2]``); T is a workspace."""
+    T[:] = c[6] * A6 + c[5] * A4 + c[4] * A2
+    matmul(A6, T, out)
+    out += c[3] * A6 + c[2] * A4 + c[1] * A2
+    for i in range(out.shape[0]):
+        out[i, i] += c[0]
+
+
+@numba.njit(cache=True)
+def expm_batch(Z: np.ndarray) -> np.ndarray:
+    """e^Z for each of the (M, n, n) matrices: scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
+    odd, even = PADE13[1::2], PADE13[0::2]
+    n = Z.shape[1]
+    out = np.empty_like(Z)
+    # one workspace for all matrices: allocations would cost more than the arithmetic
+    A, A2, A4, A6, T, W, U, V = np.empty((8, n, n))
+    for k in range(Z.shape[0]):
+        A[:] = Z[k]
+        norm = np.abs(A).sum(axis=0).max()
+        s = 0
+        if norm > THETA13:
+            s = int(np.ceil(np.log2(norm / THETA13)))
+            A *= 0.5**s
+        matmul(A, A, A2)
+        matmul(A2, A2, A4)
+        matmul(A4, A2, A6)
+        # U = A [A6 (b13 A6 + b11 A4 + b9 A2) + b7 A6 + b5 A4 + b3 A2 + b1 I]
+        pade_polynomial(A2, A4, A6, odd, T, W)
+        matmul(A, W, U)
+        # V = A6 (b12 A6 + b10 A4 + b8 A2) + b6 A6 + b4 A4 + b2 A2 + b0 I
+        pade_polynomial(A2, A4, A6, even, T, V)
+        # r = (V - U)^-1 (V + U), then squared s times
+        T[:] = V - U
+        W[:] = V + U
+        solve(T, W)
+        for _ in range(s):
+            matmul(W, W, T)
+            W[:] = T
+        out[k] = W
+    return out

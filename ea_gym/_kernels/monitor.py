@@ -1,0 +1,226 @@
+"""The monitor's compiled steps (``ea_gym.diagnosis.monitor.Monitor``): a chunk padded with its smoothing
+context, the rows smoothed and differentiated, the elements' nominal-law powers, and the chunk's EA,
+energy-balance and noise sums.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ea_gym._kernels.activity import trapezoid_activity
+from ea_gym._kernels.smoothing import LANES, filter_lanes
+
+
+@numba.njit(cache=True)
+def copy(source: np.ndarray, start: int, target: np.ndarray, offset: int) -> None:
+    """target[offset:] = source[start:] for as many samples as fit."""
+    for t in range(min(len(source) - start, len(target) - offset)):
+        target[offset + t] = source[start + t]
+
+
+@numba.njit(cache=True)
+def same(a: np.ndarray, b: np.ndarray, start: int) -> bool:
+    """Whether a[start:] equals b[start:]."""
+    for t in range(start, len(a)):
+        if a[t] != b[t]:
+            return False
+    return True
+
+
+@numba.njit(cache=True)
+def load_sources(rows, channel, skip):
+    """For each row, the first row whose ``channel`` equals its own from ``skip`` on (itself if none
+    does), and the distinct rows: the rows before it and, in a batch of real then reference rows,
+    its twin half a batch before are compared, which is where the load repeats."""
+    M = rows.shape[0]
+    source = np.empty(M, dtype=np.int64)
+    distinct = np.empty(M, dtype=np.int64)
+    count = 0
+    for m in range(M):
+        twin = m - M // 2
+        if m > 0 and same(rows[m, channel], rows[m - 1, channel], skip):
+            source[m] = source[m - 1]
+        elif M % 2 == 0 and twin >= 0 and same(rows[m, channel], rows[twin, channel], skip):
+            source[m] = source[twin]
+        else:
+            source[m] = m
+            distinct[count] = m
+            count += 1
+    return source, distinct[:count]
+
+
+@numba.njit(cache=True)
+def smooth_rows(rows, skip, cut, moments, smoother, differentiator, inertia, smooth, slope):
+    """The filters on rows (M, nx + 1, T): every signal filtered from sample ``skip`` on, outputs from ``cut`` on.
+
+    Args:
+        moments, smoother, differentiator: ``filter_lanes`` coefficients of the smoothing and derivative filters.
+        inertia: (channel, element index, inertance) of each I element; only their laws differentiate.
+        smooth, slope: written: the smoothed signals (M, nx + 1, T - skip - cut) and the I elements'
+            flow derivatives (M, n_I, T - skip - cut).
+    """
+    M, channels, T = rows.shape
+    length = T - skip
+    load = channels - 1
+    # the candidates of one system, and a system's real and reference rows, share the source's
+    # signal: each distinct one is filtered once
+    source, distinct = load_sources(rows, load, skip)
+    every = np.arange(M)
+    # LANES rows of one channel side by side, time first: the filter's recursion runs across them in
+    # SIMD; the lanes past the last row filter stale signals, whose outputs are discarded
+    x = np.zeros((length, LANES))
+    filtered = np.empty((length, LANES))
+    derivative = np.empty((length, LANES))
+    for c in range(channels):
+        members = distinct if c == load else every
+        k = -1
+        for i in range(len(inertia)):
+            if int(inertia[i, 0]) == c:
+                k = i
+        for g0 in range(0, len(members), LANES):
+            lanes = min(LANES, len(members) - g0)
+            for b in range(lanes):
+                for t in range(length):
+                    x[t, b] = rows[members[g0 + b], c, skip + t]
+            filter_lanes(x, cut, moments, smoother, differentiator, k >= 0, filtered, derivative)
+            for b in range(lanes):
+                m = members[g0 + b]
+                for t in range(length - cut):
+                    smooth[m, c, t] = filtered[cut + t, b]
+                if k >= 0:
+                    for t in range(length - cut):
+                        slope[m, k, t] = derivative[cut + t, b]
+    for m in range(M):
+        if source[m] != m:
+            for t in range(length - cut):
+                smooth[m, load, t] = smooth[source[m], load, t]
+
+
+@numba.njit(cache=True)
+def element_powers(smooth, slope, scale, Cy, Dy, effort, flow, sign, inertia, power):
+    """Nominal-law power (M, E, L) of every monitored element, written to ``power``, in W.
+
+    An I element's is I0 f df/dt from its own flow and derivative ``slope`` (M, n_I, L); the others'
+    are their bond values' product, with the arithmetic of the matrix product (z = Cy x + Dy u summed over x in order, x =
+    ``scale`` x the smoothed signals (M, nx + 1, L), u their last channel).
+    """
+    M, channels, L = smooth.shape
+    nx = channels - 1
+    own = np.zeros(len(effort), dtype=np.bool_)
+    for k in range(len(inertia)):
+        own[int(inertia[k, 1])] = True
+    # time innermost, so that the loops vectorize
+    ze = np.empty(L)
+    zf = np.empty(L)
+    for m in range(M):
+        u = smooth[m, nx]
+        for e in range(len(effort)):
+            if own[e]:
+                continue
+            a, b, sg = effort[e], flow[e], sign[e]
+            ze[:] = 0.0
+            zf[:] = 0.0
+            for s in range(nx):
+                ca, cb, c = Cy[a, s], Cy[b, s], scale[s]
+                for t in range(L):
+                    x = smooth[m, s, t] * c
+                    ze[t] += ca * x
+                    zf[t] += cb * x
+            for t in range(L):
+                power[m, e, t] = (ze[t] + Dy[a] * u[t]) * (sg * (zf[t] + Dy[b] * u[t]))
+        for k in range(len(inertia)):
+            channel, element, inertance = int(inertia[k, 0]), int(inertia[k, 1]), inertia[k, 2]
+            for t in range(L):
+                power[m, element, t] = inertance * smooth[m, channel, t] * slope[m, k, t]
+
+
+@numba.njit(cache=True)
+def chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sources, inertia):
+    """``ea_gym.diagnosis.monitor.Monitor.update``'s per-chunk outputs from the powers and smoothed signals of N real then N reference rows.
+
+    Args:
+        power: element powers (2N, E, L + 1) in W; smooth: smoothed signals (2N, nx + 1, L + 1).
+        raw: the measured signals after the chunk's first sample, (N, nx, L).
+        h: sample period (s); n_sub: samples per sub-window; n_balance: sub-windows per balance window.
+        components, sources: element indices; inertia: (channel, element index, inertance) of each I element.
+
+    Returns:
+        finite (whether every power is finite), EA (2N, E, n_sub) in J, balance residual (N, n_balances)
+        in J, gram (N, n_balances, C, C) and cross (N, n_balances, C) in J^2, noise sums (N, 2, nx).
+    """
+    M, E, T = power.shape
+    n = M // 2
+    subs = (T - 1) // n_sub
+    balances = subs // n_balance
+    C, nx = len(components), raw.shape[1]
+    finite = True
+    ea = np.empty((M, E, subs))
+    energy = np.empty((M, E, subs))  # signed, eq 3
+    balance = np.empty((M, subs))
+    for m in range(M):
+        for e in range(E):
+            p = power[m, e]
+            for t in range(T):
+                finite &= np.isfinite(p[t])
+            for s in range(subs):
+                ea[m, e, s] = trapezoid_activity(p, s * n_sub, (s + 1) * n_sub, h)
+                signed = 0.0
+                for t in range(s * n_sub, (s + 1) * n_sub):
+                    signed += 0.5 * (p[t] + p[t + 1]) * h
+                energy[m, e, s] = signed
+        # an I element's energy is the change of its kinetic energy: exact, free of the derivative's noise
+        for k in range(len(inertia)):
+            channel, element, half_inertance = int(inertia[k][0]), int(inertia[k][1]), 0.5 * inertia[k][2]
+            f = smooth[m, channel]
+            for s in range(subs):
+                energy[m, element, s] = half_inertance * (f[(s + 1) * n_sub] ** 2 - f[s * n_sub] ** 2)
+        for s in range(subs):
+            delivered = 0.0
+            for k in sources:
+                delivered += energy[m, k, s]
+            absorbed = 0.0
+            for k in components:
+                absorbed += energy[m, k, s]
+            balance[m, s] = delivered - absorbed
+    residual = np.zeros((n, balances))
+    gram = np.empty((n, balances, C, C))
+    cross = np.empty((n, balances, C))
+    stored = np.empty(C)
+    noise = np.empty((n, 2, nx))
+    for m in range(n):
+        for b in range(balances):
+            for s in range(b * n_balance, (b + 1) * n_balance):
+                residual[m, b] += balance[m, s] - balance[n + m, s]  # the reference's own error cancels
+            for i in range(C):
+                stored[i] = 0.0
+                for s in range(b * n_balance, (b + 1) * n_balance):
+                    stored[i] += energy[m, components[i], s]
+            for i in range(C):
+                for j in range(C):
+                    gram[m, b, i, j] = stored[i] * stored[j]
+                cross[m, b, i] = stored[i] * residual[m, b]
+        for c in range(nx):
+            error, power_sum = 0.0, 0.0  # in registers: the array entries would be reloaded at every sample
+            for t in range(raw.shape[2]):
+                error += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
+                power_sum += raw[m, c, t] ** 2
+            noise[m, 0, c], noise[m, 1, c] = error, power_sum
+    return finite, ea, residual, gram, cross, noise
+
+
+@numba.njit(cache=True)
+def padded_chunk(measured, reference, load, context, padded):
+    """Real then reference rows (2N, nx + 1, H + L + 1) with the load as last channel, written to
+    ``padded``, each led by its H samples of smoothing context: ``context`` (2N, nx + 1, H), or where it
+    is NaN the chunk mirrored about its first sample. ``context`` becomes the next chunk's."""
+    n, nx, T = measured.shape
+    H = context.shape[2]
+    for r in range(2 * n):
+        for c in range(nx + 1):
+            x = load[r % n] if c == nx else (measured[r, c] if r < n else reference[r - n, c])
+            y, previous = padded[r, c], context[r, c]
+            for k in range(H):
+                y[k] = x[H - k] if np.isnan(previous[k]) else previous[k]
+            copy(x, 0, y, H)
+            copy(x, T - H - 1, previous, 0)

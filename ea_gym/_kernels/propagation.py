@@ -1,0 +1,108 @@
+"""The linear recursion x[k+1] = Phi x[k] + Gamma w[k] of an exactly discretized model, many systems
+at once: with given input coefficients (``propagate_states``), and with the cubic Hermite input's
+coefficients made on the fly and constant matrices per system (``simulate_hermite``).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def propagate_states(Phi: np.ndarray, Gamma: np.ndarray, w: np.ndarray, x0: np.ndarray) -> np.ndarray:
+    """x[k+1] = Phi[s, k] x[k] + Gamma[s, k] w[s, k] from x0[s] for every system s: states (N, T + 1, nx);
+    a length-1 time axis of Phi and Gamma means constant matrices."""
+    n_sys, n_steps, nx = w.shape[0], w.shape[1], x0.shape[1]
+    m = w.shape[2]
+    x = np.empty((n_sys, n_steps + 1, nx))
+    for s in range(n_sys):
+        x[s, 0] = x0[s]
+        for k in range(n_steps):
+            kp = k if Phi.shape[1] > 1 else 0
+            for i in range(nx):
+                acc = 0.0
+                for j in range(nx):
+                    acc += Phi[s, kp, i, j] * x[s, k, j]
+                for j in range(m):
+                    acc += Gamma[s, kp, i, j] * w[s, k, j]
+                x[s, k + 1, i] = acc
+    return x
+
+
+SYSTEMS_BLOCK = 128  # systems propagated side by side; their lanes are the SIMD axis of the recursion
+SAMPLES_CHUNK = 16  # samples of a block's lane-major copies
+
+
+@numba.njit(cache=True)
+def simulate_hermite(
+    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray,
+    gain: np.ndarray, signals: np.ndarray, last: np.ndarray,
+) -> None:
+    """``propagate_states`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s and the Hermite
+    coefficients of ``ea_gym.bondgraph.simulation.hermite_coefficients`` computed on the fly, in the same arithmetic (same result).
+    Writes gain[s, i] x_i of system s at every sample to signals (N, nx, T) and its states at the
+    last sample to last (N, nx).
+
+    One system's recursion is a chain of dependent sums; ``SYSTEMS_BLOCK`` systems run side by side
+    with the system innermost, so the chains of different systems fill the SIMD lanes. Every system
+    takes the same operations in the same order as alone, so its result does not depend on the batch.
+    """
+    n_sys, n_samples, nu = u.shape
+    nx = Phi.shape[1]
+    m = Gamma.shape[2]
+    h2 = h * h
+    B = min(SYSTEMS_BLOCK, n_sys)
+    # lane-major copies, system last, of SAMPLES_CHUNK samples at a time: they stay in the first-level
+    # cache, and so do the lines of the system-major arrays that the copies' loops (lanes innermost,
+    # twice as fast as samples innermost) stride across
+    P = np.empty((nx, nx, B))
+    G = np.empty((nx, m, B))
+    load = np.empty((SAMPLES_CHUNK + 1, 2, nu, B))
+    w = np.empty((m, B))
+    X = np.empty((SAMPLES_CHUNK + 1, nx, B))
+    for s0 in range(0, n_sys, B):
+        lanes = min(B, n_sys - s0)
+        for b in range(lanes):
+            for i in range(nx):
+                X[0, i, b] = x0[s0 + b, i]
+                signals[s0 + b, i, 0] = x0[s0 + b, i] * gain[s0 + b, i]
+                for j in range(nx):
+                    P[i, j, b] = Phi[index[s0 + b], i, j]
+                for j in range(m):
+                    G[i, j, b] = Gamma[index[s0 + b], i, j]
+        for k0 in range(0, n_samples - 1, SAMPLES_CHUNK):
+            steps = min(SAMPLES_CHUNK, n_samples - 1 - k0)
+            for k in range(steps + 1):
+                for c in range(nu):
+                    for b in range(lanes):
+                        load[k, 0, c, b] = u[s0 + b, k0 + k, c]
+                        load[k, 1, c, b] = du[s0 + b, k0 + k, c]
+            for k in range(steps):
+                for c in range(nu):
+                    for b in range(lanes):
+                        u0, u1, d0, d1 = load[k, 0, c, b], load[k + 1, 0, c, b], load[k, 1, c, b], load[k + 1, 1, c, b]
+                        slope = (u1 - u0) / h
+                        c2 = (3.0 * slope - 2.0 * d0 - d1) / h
+                        c3 = (d0 + d1 - 2.0 * slope) / h2
+                        w[c, b] = u0
+                        w[nu + c, b] = d0
+                        w[2 * nu + c, b] = 2.0 * c2
+                        w[3 * nu + c, b] = 6.0 * c3
+                for i in range(nx):
+                    acc = X[k + 1, i]
+                    acc[:lanes] = 0.0
+                    for j in range(nx):
+                        for b in range(lanes):
+                            acc[b] += P[i, j, b] * X[k, j, b]
+                    for j in range(m):
+                        for b in range(lanes):
+                            acc[b] += G[i, j, b] * w[j, b]
+            for k in range(1, steps + 1):
+                for i in range(nx):
+                    for b in range(lanes):
+                        signals[s0 + b, i, k0 + k] = X[k, i, b] * gain[s0 + b, i]
+            X[0] = X[steps]
+        for i in range(nx):
+            for b in range(lanes):
+                last[s0 + b, i] = X[0, i, b]
