@@ -25,13 +25,15 @@ def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, v
     hyp, h = est.hypotheses, est.h
     nx = measured.shape[1]
     for s, f in np.ndindex(z.shape[:2]):
+        anchor = z[s, f, nx]
+        width = hyp.hi[f] - hyp.lo[f]
+        x = np.clip((2 * anchor - hyp.lo[f] - hyp.hi[f]) / width, -1, 1) if width > 0 else 0.0
+        c = hyp.coefficients[f, : hyp.terms[f]]
+        M0 = chebyshev.chebval(x, c)
+        dM = chebyshev.chebval(x, chebyshev.chebder(c, axis=0)) * 2 / width if len(c) > 1 else np.zeros_like(M0)
         for k in range(1, measured.shape[2]):
             theta = z[s, f, nx]
-            width = hyp.hi[f] - hyp.lo[f]
-            x = np.clip((2 * theta - hyp.lo[f] - hyp.hi[f]) / width, -1, 1) if width > 0 else 0.0
-            c = hyp.coefficients[f, : hyp.terms[f]]
-            M = chebyshev.chebval(x, c)
-            dM = chebyshev.chebval(x, chebyshev.chebder(c, axis=0)) * 2 / width if len(c) > 1 else np.zeros_like(M)
+            M = M0 + dM * (theta - anchor)
             u0, u1, d0, d1 = load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k]
             slope = (u1 - u0) / h
             w = np.array([u0, d0, 2 * (3 * slope - 2 * d0 - d1) / h, 6 * (d0 + d1 - 2 * slope) / h**2])
@@ -55,11 +57,10 @@ def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, v
             H[np.arange(nx), np.arange(nx)] = g
             nu = measured[s, :, k] - g * z[s, f, :nx]
             S = H @ P[s, f] @ H.T + np.diag(variance[s])
-            K = P[s, f] @ H.T @ np.linalg.inv(S)
+            K = np.linalg.solve(S, H @ P[s, f]).T
             ll[s, f] = est.forget * ll[s, f] - 0.5 * (nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(S)) + nx * np.log(2 * np.pi))
             z[s, f] += K @ nu
-            A = np.eye(nx + 2) - K @ H
-            P[s, f] = A @ P[s, f] @ A.T + K @ np.diag(variance[s]) @ K.T
+            P[s, f] -= K @ S @ K.T
 
 
 def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0):
