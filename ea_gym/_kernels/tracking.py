@@ -259,8 +259,8 @@ def track(
             chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], anchor, M0, dM, basis)
             for k in range(1, measured.shape[2]):
                 shift = zf[nx] - anchor
-                for i in range(M.shape[0]):
-                    for j in range(M.shape[1]):
+                for i in range(nx):
+                    for j in range(coefficients.shape[3]):
                         M[i, j] = M0[i, j] + dM[i, j] * shift
                 for i in range(nx):
                     g = 1.0 / zf[nx] if i == own[f] else gain[f, i]
