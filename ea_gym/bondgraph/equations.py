@@ -10,7 +10,7 @@ loops are solved exactly by the same linear solve.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -45,6 +45,17 @@ class _Entry:
     reciprocal: bool
 
 
+@dataclass
+class _Equations:
+    """The 2n bond-end equations M(phi) z = N(phi) x + P u as they are assembled, one row per bond end:
+    M0 the constant part of M, P the input map, ``entries`` the parameter-dependent coefficients."""
+
+    M0: np.ndarray
+    P: np.ndarray
+    entries: list[_Entry] = field(default_factory=list)
+    row: int = 0
+
+
 class StateSpaceModel:
     """The linear model of a bond graph.
 
@@ -59,90 +70,88 @@ class StateSpaceModel:
     def __init__(self, graph: BondGraph) -> None:
         self.graph = graph
         self.causality: Causality = assign_causality(graph)
-        elements = graph.elements
-        bonds = graph.bonds
-        self.n_bonds = n = len(bonds)
+        self.n_bonds = n = len(graph.bonds)
         self.parameter_names = tuple(graph.names(k for k in Kind if k.has_parameter))
         self.state_names = tuple(graph.names([Kind.I, Kind.C]))
         self.input_names = tuple(graph.names([Kind.SE, Kind.SF]))
         self.bond_of: dict[str, int] = {}
         # +1 where the bond points into the element: then f is the flow into it
         self.flow_sign: dict[str, float] = {}
+        equations = _Equations(M0=np.zeros((2 * n, 2 * n)), P=np.zeros((2 * n, len(self.input_names))))
+        for name, element in graph.elements.items():
+            if element.kind.is_junction:
+                self._junction_equations(name, equations)
+            elif element.kind.is_two_port:
+                self._two_port_equations(name, equations)
+            else:
+                self._one_port_equation(name, equations)
+        assert equations.row == 2 * n, "every bond end contributes exactly one equation"
+        self._M0 = equations.M0
+        self._P = equations.P
+        self._entries = tuple(equations.entries)
+        self._S = self._state_derivative_map()
 
-        M0 = np.zeros((2 * n, 2 * n))
-        P = np.zeros((2 * n, len(self.input_names)))
-        entries: list[_Entry] = []
-        row = 0
+    def _junction_equations(self, name: str, equations: _Equations) -> None:
+        """A 0 junction's common effort and summed flows (a 1 junction's: flow and efforts), one row per bond."""
+        n, ports = self.n_bonds, self.graph.bonds_of(name)
+        common, summed = (0, n) if self.graph.elements[name].kind is Kind.ZERO else (n, 0)
+        for i in ports[1:]:
+            equations.M0[equations.row, common + ports[0]], equations.M0[equations.row, common + i] = 1.0, -1.0
+            equations.row += 1
+        for i in ports:
+            equations.M0[equations.row, summed + i] = 1.0 if self.graph.bonds[i].head == name else -1.0
+        equations.row += 1
 
-        def e(i: int) -> int:
-            return i
+    def _two_port_equations(self, name: str, equations: _Equations) -> None:
+        """TF: e_a = n e_b, f_b = n f_a.  GY: e_a = r f_b, e_b = r f_a (a: incoming bond, b: outgoing)."""
+        n = self.n_bonds
+        a, b = self.graph.two_port_bonds(name)
+        j = self.parameter_names.index(name)
+        tf = self.graph.elements[name].kind is Kind.TF
+        pairs = [(a, b), (n + b, n + a)] if tf else [(a, n + b), (b, n + a)]
+        for lhs, rhs in pairs:
+            equations.M0[equations.row, lhs] = 1.0
+            equations.entries.append(_Entry(j, "M", equations.row, rhs, -1.0, False))
+            equations.row += 1
 
-        def f(i: int) -> int:
-            return n + i
+    def _one_port_equation(self, name: str, equations: _Equations) -> None:
+        """The constitutive law of a source, R, C or I element on its one bond."""
+        element = self.graph.elements[name]
+        kind, row = element.kind, equations.row
+        i = self.graph.bonds_of(name)[0]
+        sign = 1.0 if self.graph.bonds[i].head == name else -1.0
+        self.bond_of[name] = i
+        self.flow_sign[name] = sign
+        effort, flow = i, self.n_bonds + i
+        if kind is Kind.SE:
+            equations.M0[row, effort] = 1.0
+            equations.P[row, self.input_names.index(name)] = 1.0
+        elif kind is Kind.SF:
+            # the source's value is the flow it delivers, i.e. out of it
+            equations.M0[row, flow] = 1.0
+            equations.P[row, self.input_names.index(name)] = -sign
+        elif kind is Kind.R:
+            equations.M0[row, effort] = 1.0
+            equations.entries.append(_Entry(self.parameter_names.index(name), "M", row, flow, -sign, False))
+        elif kind is Kind.C:
+            equations.M0[row, effort] = 1.0
+            capacitance = element.c_form is CForm.CAPACITANCE
+            equations.entries.append(_Entry(self.parameter_names.index(name), "N", row, self.state_names.index(name), 1.0, capacitance))
+        else:  # I: flow into the element = p / I
+            equations.M0[row, flow] = sign
+            equations.entries.append(_Entry(self.parameter_names.index(name), "N", row, self.state_names.index(name), 1.0, True))
+        equations.row += 1
 
-        for name, element in elements.items():
-            kind = element.kind
-            ports = graph.bonds_of(name)
-            if kind.is_junction:
-                signs = [1.0 if bonds[i].head == name else -1.0 for i in ports]
-                common, summed = (e, f) if kind is Kind.ZERO else (f, e)
-                for i in ports[1:]:
-                    M0[row, common(ports[0])], M0[row, common(i)] = 1.0, -1.0
-                    row += 1
-                for i, s in zip(ports, signs):
-                    M0[row, summed(i)] = s
-                row += 1
-                continue
-            if kind.is_two_port:
-                a, b = graph.two_port_bonds(name)
-                j = self.parameter_names.index(name)
-                # TF: e_a = n e_b, f_b = n f_a.  GY: e_a = r f_b, e_b = r f_a.
-                pairs = [(e(a), e(b)), (f(b), f(a))] if kind is Kind.TF else [(e(a), f(b)), (e(b), f(a))]
-                for lhs, rhs in pairs:
-                    M0[row, lhs] = 1.0
-                    entries.append(_Entry(j, "M", row, rhs, -1.0, False))
-                    row += 1
-                continue
-            i = ports[0]
-            sign = 1.0 if bonds[i].head == name else -1.0
-            self.bond_of[name] = i
-            self.flow_sign[name] = sign
-            if kind is Kind.SE:
-                M0[row, e(i)] = 1.0
-                P[row, self.input_names.index(name)] = 1.0
-            elif kind is Kind.SF:
-                # the source's value is the flow it delivers, i.e. out of it
-                M0[row, f(i)] = 1.0
-                P[row, self.input_names.index(name)] = -sign
-            elif kind is Kind.R:
-                M0[row, e(i)] = 1.0
-                entries.append(_Entry(self.parameter_names.index(name), "M", row, f(i), -sign, False))
-            elif kind is Kind.C:
-                M0[row, e(i)] = 1.0
-                entries.append(
-                    _Entry(
-                        self.parameter_names.index(name), "N", row, self.state_names.index(name), 1.0,
-                        element.c_form is CForm.CAPACITANCE,
-                    )
-                )
-            else:  # I: flow into the element = p / I
-                M0[row, f(i)] = sign
-                entries.append(_Entry(self.parameter_names.index(name), "N", row, self.state_names.index(name), 1.0, True))
-            row += 1
-        assert row == 2 * n, "every bond end contributes exactly one equation"
-
-        self._M0 = M0
-        self._P = P
-        self._entries = tuple(entries)
-        # dx/dt = S z: dp/dt = effort of an I bond, dq/dt = flow into a C element
-        S = np.zeros((len(self.state_names), 2 * n))
+    def _state_derivative_map(self) -> np.ndarray:
+        """S of dx/dt = S z: dp/dt = effort of an I bond, dq/dt = flow into a C element, (nx, 2 n_bonds)."""
+        S = np.zeros((len(self.state_names), 2 * self.n_bonds))
         for k, name in enumerate(self.state_names):
             i = self.bond_of[name]
-            if elements[name].kind is Kind.I:
-                S[k, e(i)] = 1.0
+            if self.graph.elements[name].kind is Kind.I:
+                S[k, i] = 1.0
             else:
-                S[k, f(i)] = self.flow_sign[name]
-        self._S = S
+                S[k, self.n_bonds + i] = self.flow_sign[name]
+        return S
 
     @property
     def n_states(self) -> int:
