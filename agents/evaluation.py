@@ -269,7 +269,7 @@ def evaluate(
 def tune(
     policy_factory: Callable[[Any], Any],
     grid: Sequence[Any],
-    env_factory: Callable[[], Any],
+    env_factory: Callable[..., Any],
     seeds: Iterable[int],
     progress: bool = True,
     batch_size: int | None = None,

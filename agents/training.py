@@ -26,6 +26,7 @@ from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 import ea_gym  # noqa: F401 - registers the environments
+from agents.conventions import MODEL_FILE, NORMALIZATION_FILE, SUMMARY_FILE, TRAINING_SEED, VALIDATION_SEED
 from agents.imitation import clone
 from agents.observations import LearnerView, normalised_keys
 from ea_gym.env import ENV_ID
@@ -34,11 +35,6 @@ from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
 
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "a2c": A2C, "dqn": DQN}
-#: seeds of the training environments start here; evaluation seeds (agents.evaluation) never overlap
-TRAINING_SEED = 1_000
-VALIDATION_SEED = 5_000
-MODEL_FILE = "model.zip"
-NORMALIZATION_FILE = "vecnormalize.pkl"
 
 
 @dataclass(frozen=True)
@@ -184,7 +180,7 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
     selected = _select(out, run, cloning, model.num_timesteps)
     summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
                "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected}
-    write_json(out / "training.json", summary)
+    write_json(out / SUMMARY_FILE, summary)
     env.close()
     return summary
 
@@ -235,7 +231,7 @@ def _normalization_beside(checkpoint: Path) -> Path:
 def load_policy(directory: Path, obs_mode: str | None = None):
     """A trained policy with SB3's ``predict``, normalising raw observations as during training."""
     directory = Path(directory)
-    summary = json.loads((directory / "training.json").read_text())
+    summary = json.loads((directory / SUMMARY_FILE).read_text())
     algorithm = ALGORITHMS[summary["run"]["algo"]]
     model = algorithm.load(str(directory / MODEL_FILE), device="cpu")
     run = TrainingRun(**{"activity": False, **summary["run"], "n_envs": 1})

@@ -33,13 +33,13 @@ from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 try:  # runnable as ``python experiments/benchmark_policies.py`` without an up-to-date install
-    from agents.benchmark import run_benchmark
+    from agents.benchmark.run import run_benchmark
 except ImportError:  # pragma: no cover - depends on how the script is started
     sys.path.insert(0, str(ROOT))
     for name in [m for m in sys.modules if m == "agents" or m.startswith("agents.")]:
         del sys.modules[name]
 
-from agents.benchmark import run_benchmark  # noqa: E402
+from agents.benchmark.run import run_benchmark  # noqa: E402
 
 DATA = ROOT / "agents" / "data"
 DEFAULT_OUT = ROOT / "experiments" / "results" / "benchmark"

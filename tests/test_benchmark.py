@@ -5,8 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from agents import benchmark
-from agents.benchmark import evaluation_seeds, run_benchmark, tuning_seeds
+from agents.benchmark import run as benchmark_run
+from agents.benchmark.run import run_benchmark
+from agents.benchmark.settings import evaluation_seeds, tuning_seeds
 from ea_gym.cli import main
 
 PNG = b"\x89PNG\r\n\x1a\n"
@@ -96,7 +97,7 @@ def test_figures_are_pngs_and_the_timelines_share_one_seed(tiny):
 
 
 def test_evaluation_seeds_never_meet_training_validation_or_tuning_seeds():
-    from agents.training import TRAINING_SEED, VALIDATION_SEED
+    from agents.conventions import TRAINING_SEED, VALIDATION_SEED
 
     tuning = set(tuning_seeds(1000))
     for seed in (0, 1, 7):
@@ -126,13 +127,13 @@ def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
 
     calls = []
     # the command line's default is the library's
-    library_default = inspect.signature(benchmark.run_benchmark).parameters["tune_episodes"].default
+    library_default = inspect.signature(benchmark_run.run_benchmark).parameters["tune_episodes"].default
 
     def fake(episodes, seed, out, ppo, tune_episodes=10, progress=True):
         calls.append((episodes, seed, out, ppo, tune_episodes, progress))
         return {"policies": {"oracle": {"mean_cost": 1.0}}, "ranking": ["oracle"], "skipped": {"ppo": "none"}}
 
-    monkeypatch.setattr(benchmark, "run_benchmark", fake)
+    monkeypatch.setattr(benchmark_run, "run_benchmark", fake)
     assert main(["benchmark", "--episodes", "4", "--seed", "2", "--out", str(tmp_path), "--ppo", str(tmp_path / "agent"),
                  "--tune-episodes", "3", "--no-progress"]) == 0
     assert calls[-1] == (4, 2, tmp_path, tmp_path / "agent", 3, False)
@@ -145,7 +146,7 @@ def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
 
 def test_cli_default_ppo_is_the_packaged_agent_when_present():
     import agents
-    from ea_gym import cli
+    from agents.cli import default_agent
 
     expected = Path(agents.__file__).parent / "data" / "ppo_phm"
-    assert cli._default_ppo() == (expected if expected.is_dir() else None)
+    assert default_agent() == (expected if expected.is_dir() else None)

@@ -57,3 +57,18 @@ def test_help_explains_every_option(capsys):
     text = capsys.readouterr().out
     for option in ("SCENARIO", "--out", "--window"):
         assert option.lower() in text.lower()
+
+
+def test_agents_commands_come_through_the_entry_point_group(capsys):
+    """ea_gym never imports agents: train and benchmark are found in the ``ea_gym.commands`` entry points."""
+    from importlib.metadata import entry_points
+
+    from ea_gym.cli_args import COMMAND_GROUP
+
+    assert {e.name: e.value for e in entry_points(group=COMMAND_GROUP)} == {
+        "train": "agents.cli:add_train", "benchmark": "agents.cli:add_benchmark"}
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    text = capsys.readouterr().out
+    for command in ("simulate", "phm", "reproduce", "train", "benchmark"):
+        assert command in text

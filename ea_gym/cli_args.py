@@ -1,0 +1,43 @@
+"""What every ``ea-gym`` subcommand shares: argument types that refuse bad values, and the seam through
+which packages add subcommands (the ``ea_gym.commands`` entry-point group)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any, Protocol
+
+__all__ = ["COMMAND_GROUP", "Subcommands", "positive_int", "non_negative_int", "positive_float"]
+
+#: entry-point group of subcommands from other packages: each entry is ``add(commands: Subcommands) -> None``,
+#: which adds its parser with ``commands.add_parser`` and sets ``run`` (``args -> exit code``) as its default
+COMMAND_GROUP = "ea_gym.commands"
+
+
+class Subcommands(Protocol):
+    """``ArgumentParser.add_subparsers()``' result, as far as a subcommand needs it."""
+
+    def add_parser(self, name: str, **kwargs: Any) -> argparse.ArgumentParser: ...
+
+
+def positive_int(text: str) -> int:
+    """An integer > 0 (argparse type)."""
+    value = int(text)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """An integer >= 0 (argparse type)."""
+    value = int(text)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected an integer >= 0, got {text}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A number of seconds > 0 (argparse type)."""
+    value = float(text)
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text}")
+    return value
