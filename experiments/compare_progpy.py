@@ -274,7 +274,7 @@ def drift_model(system: SystemModel, estimated: Sequence[str]) -> Any:
         rate[slots] = state[slots + 1]
         return rate
 
-    class SpringMassDamperDrift(PrognosticsModel):  # type: ignore[misc]
+    class SpringMassDamperDrift(PrognosticsModel):
         inputs = ["F", "dF", "F_next", "dF_next"]
         states = ["p", "q", *(s for name in estimated for s in (name, f"{name}_drift"))]
         outputs = ["v", "x"]
@@ -379,3 +379,248 @@ def filter_track(record: FilterRecord, system: SystemModel, parameter: str, isol
         rul[s] = drift_rul(record.mean[s, j], record.mean[s, j + 1], pair, system.safe_limits[name])
     estimate = record.mean[:, record.states.index(parameter)]
     return Track(record.t, estimate, record.t, tuple(isolated), rul)
+
+
+# ---------------------------------------------------------------------------------------------------
+# scores
+# ---------------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RunScore:
+    """One track's samples for issue 17's metrics (see the module docstring)."""
+
+    estimate: np.ndarray  # in the error window
+    truth: np.ndarray
+    alpha: np.ndarray  # per prediction: within +-20 % of the true RUL
+    covers: np.ndarray  # per prediction: the interval contains the true RUL
+    bounded: np.ndarray  # per prediction: the interval is bounded
+    isolated: str  # named at the true End of Life
+
+
+def score_run(track: Track, scenario: Scenario) -> RunScore:
+    """The samples of ``track`` the metrics count, against the scenario's truth."""
+    assert scenario.fault is not None
+    onset, eol = fault_window(scenario)
+    errors = (track.t >= onset + SETTLE - 1e-9) & (track.t <= eol)
+    truth = scenario.fault.profile.value(track.estimate_time[errors])
+    predictions = prediction_mask(track.t, onset, eol)
+    rul_true = eol - track.t[predictions]
+    low, high = track.rul[predictions, 1], track.rul[predictions, 2]
+    covers, bounded = interval_hits(low, high, rul_true)
+    last = int(np.flatnonzero(track.t <= eol)[-1])
+    alpha = alpha_hits(track.rul[predictions, 0], rul_true)
+    return RunScore(track.estimate[errors], np.asarray(truth, dtype=float), alpha, covers, bounded, track.isolated[last])
+
+
+def summarise(scores: Sequence[RunScore], parameter: str) -> dict[str, Any]:
+    """Issue 17's figures over all seeds' runs of one scenario."""
+    estimate = np.concatenate([s.estimate for s in scores])
+    truth = np.concatenate([s.truth for s in scores])
+    finite = np.isfinite(estimate)
+    errors = estimation_errors(estimate[finite], truth[finite]) if finite.any() else {"median": np.nan, "max": np.nan, "rmse": np.nan}
+    alpha, covers, bounded = (np.concatenate([getattr(s, name) for s in scores]) for name in ("alpha", "covers", "bounded"))
+    return {
+        "error_median": errors["median"],
+        "error_max": errors["max"] if finite.all() else np.inf,  # a missing estimate is as bad as any
+        "missing_estimates": int((~finite).sum()),
+        "alpha_lambda": float(alpha.mean()),
+        "coverage": float((covers & bounded).mean()),  # unbounded intervals count as misses
+        "coverage_unbounded_as_hits": float(covers.mean()),
+        "predictions": int(alpha.size),
+        "bounded_intervals": int(bounded.sum()),
+        "isolated_right": sum(s.isolated == parameter for s in scores),
+        "runs": len(scores),
+    }
+
+
+def tune_drift_noise(scenario: Scenario, settings: FilterSettings, grid: Sequence[float], log: Any) -> tuple[float, list[dict[str, Any]]]:
+    """The drift noise of ``grid`` with the smallest median error on the tuning seeds among those whose
+    intervals cover the true RUL >= 90 % of the time (unbounded as misses); the best covering without one."""
+    assert scenario.fault is not None
+    parameter = scenario.fault.parameter
+    signals = [record_signals(s, np.random.default_rng(s.sensor_seed)) for s in (with_seed(scenario, i) for i in TUNING_SEEDS)]
+    rows = []
+    for value in grid:
+        tuned = replace(settings, drift_noise=value)
+        records = [run_ukf(scenario.model, x, scenario.noise, (parameter,), tuned) for x in signals]
+        scores = [score_run(filter_track(record, scenario.model, parameter), scenario) for record in records]
+        rows.append({"drift_noise": value, **summarise(scores, parameter)})
+        log(f"tuning drift_noise {value:g}: median error {rows[-1]['error_median']:.3g}, coverage {rows[-1]['coverage']:.2f}")
+    covering = [row for row in rows if row["coverage"] >= 0.9]
+    best = min(covering, key=lambda row: row["error_median"]) if covering else max(rows, key=lambda row: row["coverage"])
+    return float(best["drift_noise"]), rows
+
+
+# ---------------------------------------------------------------------------------------------------
+# one (scenario, seed): the signals once, every estimator on them
+# ---------------------------------------------------------------------------------------------------
+
+UKF = "ProgPy UKF"
+UKF_ALL = "ProgPy UKF, all three parameters as states"
+
+
+def chain_method(estimator: str) -> str:
+    return f"ea-gym chain ({estimator})"
+
+
+def run_seed(scenario: Scenario, chains: dict[str, PHMChain], settings: FilterSettings, log: Any) -> dict[str, Track]:
+    """Every estimator's track on the scenario's signals (its sensor seed as given)."""
+    assert scenario.fault is not None
+    parameter, system = scenario.fault.parameter, scenario.model
+    signals = record_signals(scenario, np.random.default_rng(scenario.sensor_seed))
+    tracks = {}
+    start = time.perf_counter()
+    tracks[UKF] = filter_track(run_ukf(system, signals, scenario.noise, (parameter,), settings), system, parameter)
+    everything = run_ukf(system, signals, scenario.noise, tuple(system.parameter_names), settings)
+    tracks[UKF_ALL] = filter_track(everything, system, parameter, isolate_by_drift(everything, system))
+    middle = time.perf_counter()
+    for estimator, chain in chains.items():
+        tracks[chain_method(estimator)] = run_chain(chain, signals, parameter)
+    log(f"  seed {scenario.sensor_seed}: UKFs {middle - start:.0f} s, chain {time.perf_counter() - middle:.0f} s")
+    return tracks
+
+
+# ---------------------------------------------------------------------------------------------------
+# outputs
+# ---------------------------------------------------------------------------------------------------
+
+
+def table(summary: dict[str, dict[str, dict[str, Any]]], scenarios: dict[str, Scenario]) -> str:
+    """The markdown table: one row per estimator, the scenarios' parameters in the columns."""
+    params = [(name, s.fault.parameter, s.model.units.get(s.fault.parameter, "")) for name, s in scenarios.items() if s.fault is not None]
+    slash = " / ".join(p for _, p, _ in params)
+    header = (
+        "| | " + " | ".join(f"{p} median / max ({unit})" for _, p, unit in params)
+        + f" | alpha-lambda {slash} | RUL 95 % interval covers truth {slash} (unbounded intervals as hits) | isolated right at End of Life {slash} |"
+    )
+    lines = [header, "|---" * (len(params) + 4) + "|"]
+    for method, rows in summary.items():
+        cells = [f"{rows[n]['error_median']:.2g} / {rows[n]['error_max']:.2g}" for n, _, _ in params]
+        alpha = " / ".join(f"{rows[n]['alpha_lambda']:.2f}" for n, _, _ in params)
+        coverage = " / ".join(f"{rows[n]['coverage']:.2f}" for n, _, _ in params)
+        loose = " / ".join(f"{rows[n]['coverage_unbounded_as_hits']:.2f}" for n, _, _ in params)
+        isolated = " / ".join(f"{rows[n]['isolated_right']} of {rows[n]['runs']}" for n, _, _ in params)
+        lines.append(f"| {method} | " + " | ".join(cells) + f" | {alpha} | {coverage} ({loose}) | {isolated} |")
+    return "\n".join(lines) + "\n"
+
+
+def plot_estimates(tracks: dict[str, dict[str, list[Track]]], scenarios: dict[str, Scenario], path: Path) -> Path:
+    """One panel per scenario: every estimator's estimate of the degrading parameter, all seeds, against the truth."""
+    from ea_gym.pyplot import plt
+
+    fig, axes = plt.subplots(len(scenarios), 1, figsize=(10, 3.6 * len(scenarios)), squeeze=False)
+    colors = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for ax, (name, scenario) in zip(axes[:, 0], scenarios.items()):
+        assert scenario.fault is not None
+        parameter = scenario.fault.parameter
+        onset, eol = fault_window(scenario)
+        limit = min(scenario.model.safe_limits[parameter], key=lambda v: abs(v - scenario.fault.profile.value(np.array(eol))))  # type: ignore[union-attr]
+        t = scenario.times()[:: int(round(scenario.sample_rate))]
+        drawn = [scenario.fault.profile.value(t), np.array([limit])]
+        for i, (method, runs) in enumerate(tracks[name].items()):
+            for s, track in enumerate(runs):
+                ax.plot(track.estimate_time, track.estimate, color=colors[i % len(colors)], lw=0.8, zorder=3, label=method if s == 0 else None)
+                drawn.append(track.estimate)
+        ax.plot(t, drawn[0], color="0.3", lw=3.0, zorder=2, label=f"true {parameter}")
+        ax.axhline(limit, color="0.4", ls="--", lw=1.0, label="safe limit")
+        ax.axvline(eol, color="0.4", ls=":", lw=1.0, label="true End of Life")
+        values = np.concatenate([np.ravel(v) for v in drawn])
+        values = values[np.isfinite(values)]
+        pad = 0.05 * (values.max() - values.min())
+        ax.set_ylim(values.min() - pad, values.max() + pad)
+        ax.set_xlim(0.0, scenario.duration)
+        ax.set_title(f"{name}: estimates of {parameter}, {len(next(iter(tracks[name].values())))} noise seeds")
+        ax.set_ylabel(f"{parameter} ({scenario.model.units.get(parameter, '')})")
+        ax.grid(alpha=0.3)
+        ax.legend(loc="best", fontsize=8)
+    axes[-1, 0].set_xlabel("time the estimate describes (s)")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def track_data(track: Track) -> dict[str, Any]:
+    return {"t": track.t, "estimate": track.estimate, "estimate_time": track.estimate_time, "isolated": list(track.isolated),
+            "rul": track.rul[:, 0], "rul_low": track.rul[:, 1], "rul_high": track.rul[:, 2]}
+
+
+# ---------------------------------------------------------------------------------------------------
+# command line
+# ---------------------------------------------------------------------------------------------------
+
+
+def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--scenarios", nargs="+", choices=NAMES, default=list(NAMES), help="which ramps (default all three)")
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4], help="seeds i: sensors.seed + 100 i (default 0..4)")
+    parser.add_argument("--estimator", action="append", default=None,
+                        help="the chain's estimator, passed into PHMConfig where it takes one (repeat for several; default: its default)")
+    parser.add_argument("--ukf-rate", type=float, default=None, help="UKF steps per s (Hz), a divisor of the sample rate (default: the sample rate)")
+    parser.add_argument("--drift-noise", type=float, default=None, help="the UKF's drift noise, not tuned (default: tuned on seeds 10..12)")
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "compare_progpy", help="output folder")
+    parser.add_argument("--quick", action="store_true", help="mass ramp, seed 0, the UKF at 20 Hz, no tuning: a smoke run")
+    args = parser.parse_args(argv)
+    if any(seed < 0 for seed in args.seeds):
+        parser.error(f"--seeds: must be >= 0, got {args.seeds}")
+    if args.ukf_rate is not None and not args.ukf_rate > 0:
+        parser.error(f"--ukf-rate: must be > 0 Hz, got {args.ukf_rate}")
+    if args.drift_noise is not None and not args.drift_noise >= 0:
+        parser.error(f"--drift-noise: must be >= 0, got {args.drift_noise}")
+    if args.quick:
+        args.scenarios = ["mass_m_ramp"] if "--scenarios" not in (argv or sys.argv) else args.scenarios
+        args.seeds, args.ukf_rate = args.seeds[:1], args.ukf_rate or 20.0
+        args.drift_noise = DEFAULT_DRIFT_NOISE if args.drift_noise is None else args.drift_noise
+    return args
+
+
+def log(message: str) -> None:
+    print(message, file=sys.stderr, flush=True)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = parse_args(argv)
+    if importlib.util.find_spec("progpy") is None:
+        print("compare_progpy: ProgPy is not installed; pip install -e '.[compare]' (progpy==1.9.0)", file=sys.stderr)
+        return 2
+    scenarios = {name: load_scenario(SCENARIOS / f"{name}.json") for name in args.scenarios}
+    spring = load_scenario(SCENARIOS / "spring_k_ramp.json")
+    settings = FilterSettings(rate=args.ukf_rate or spring.sample_rate)
+    tuning: list[dict[str, Any]] = []
+    if args.drift_noise is None:
+        drift_noise, tuning = tune_drift_noise(spring, settings, DRIFT_NOISE_GRID, log)
+        settings = replace(settings, drift_noise=drift_noise)
+    else:
+        settings = replace(settings, drift_noise=args.drift_noise)
+    estimators = args.estimator or [None]
+    tracks: dict[str, dict[str, list[Track]]] = {}
+    summary: dict[str, dict[str, dict[str, Any]]] = {}
+    for name, scenario in scenarios.items():
+        assert scenario.fault is not None
+        log(f"{name}:")
+        classifier = classifier_for(scenario.model, np.random.default_rng(scenario.sensor_seed))
+        chains = {estimator_label(e): build_chain(scenario.model, chain_config(scenario, e), classifier, np.random.default_rng(scenario.sensor_seed))
+                  for e in estimators}
+        runs = [run_seed(with_seed(scenario, seed), chains, settings, log) for seed in args.seeds]
+        tracks[name] = {method: [run[method] for run in runs] for method in runs[0]}
+        for method, method_tracks in tracks[name].items():
+            summary.setdefault(method, {})[name] = summarise([score_run(t, scenario) for t in method_tracks], scenario.fault.parameter)
+    markdown = table(summary, scenarios)
+    notes = (
+        f"\nSeeds {args.seeds} (sensors.seed + 100 i); the UKF at {settings.rate:g} Hz, drift noise {settings.drift_noise:g} "
+        "of nominal per s per sqrt(s)" + (" (tuned on the spring ramp's seeds 10..12)" if tuning else " (given, not tuned)")
+        + f". Errors from {SETTLE:g} s after onset to the true End of Life (the chain's estimate against the truth at the time it "
+        "describes); alpha-lambda (alpha 0.2) and coverage over predictions every second from 50 to 90 % of the way from onset to End of Life.\n"
+    )
+    write_text(args.out / "table.md", markdown + notes)
+    plot_estimates(tracks, scenarios, args.out / "estimates.png")
+    write_json(args.out / "results.json", json_ready({
+        "command": "python experiments/compare_progpy.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "seeds": args.seeds, "ukf": {**vars(settings)}, "tuning": tuning, "summary": summary,
+        "runs": {name: {method: [track_data(t) for t in runs] for method, runs in by_method.items()} for name, by_method in tracks.items()},
+    }))
+    print(markdown + notes)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
