@@ -108,99 +108,38 @@ def predict(
 
 
 @numba.njit(cache=True)
-def cholesky_solve(L: np.ndarray, b: np.ndarray) -> None:
-    """b = (L L^T)^-1 b in place, column by column; L lower triangular (m, m), b (m, k)."""
-    m = L.shape[0]
-    for c in range(b.shape[1]):
-        for i in range(m):
-            acc = b[i, c]
-            for j in range(i):
-                acc -= L[i, j] * b[j, c]
-            b[i, c] = acc / L[i, i]
-        for i in range(m - 1, -1, -1):
-            acc = b[i, c]
-            for j in range(i + 1, m):
-                acc -= L[j, i] * b[j, c]
-            b[i, c] = acc / L[i, i]
-
-
-@numba.njit(cache=True)
-def cholesky(S: np.ndarray, L: np.ndarray) -> None:
-    """L lower triangular with L L^T = S (m, m)."""
-    m = S.shape[0]
-    L[:] = 0.0
-    for i in range(m):
-        for j in range(i + 1):
-            acc = S[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            L[i, j] = math.sqrt(acc) if i == j else acc / L[j, j]
-
-
-@numba.njit(cache=True)
 def correct(z: np.ndarray, P: np.ndarray, y: np.ndarray, r: np.ndarray, gain: np.ndarray, own: int, work: np.ndarray) -> float:
-    """Measurement update of one filter from y = g x + noise of variances r; returns the
-    innovation's log-density. ``own``: the state whose gain is 1 / theta (-1: none).
+    """Measurement update of one filter from y = g x + noise of variances r; returns the innovation's log-density.
 
-    H has one nonzero per row (the state's gain) plus, on row ``own``, the theta column.
-    ``work``: (4 n, n) scratch rows.
+    The noise is independent across channels, so the joint update is the channels' scalar updates in
+    turn (the same posterior, and the log-density is the sum of the conditional ones), all linearised
+    at the predicted state as the joint update is: no matrix inverse. ``own``: the state whose gain is
+    1 / theta (-1: none). ``work``: (3, n) scratch.
     """
     n = z.shape[0]
     nx = n - 2
-    g = work[0, :nx]
-    d = 0.0  # d y_own / d theta
-    for i in range(nx):
-        g[i] = gain[i]
-    if own >= 0:
-        g[own] = 1.0 / z[nx]
-        d = -z[own] * g[own] * g[own]
-    # PHt (n, nx): column i = g_i P[:, i] (+ d P[:, nx] on own)
-    PHt = work[1 : 1 + n, :nx]
-    for row in range(n):
-        for i in range(nx):
-            PHt[row, i] = g[i] * P[row, i] + (d * P[row, nx] if i == own else 0.0)
-    S = work[1 + n : 1 + n + nx, :nx]
-    for i in range(nx):
-        for j in range(nx):
-            S[i, j] = g[i] * PHt[i, j] + (d * PHt[nx, j] if i == own else 0.0)
-        S[i, i] += r[i]
-    L = work[1 + n + nx : 1 + n + 2 * nx, :nx]
-    cholesky(S, L)
-    # innovation nu and a = S^-1 nu; Kt = S^-1 PHt^T (nx, n)
-    nu = work[1 + n + 2 * nx : 2 + n + 2 * nx, :nx]
-    for i in range(nx):
-        nu[0, i] = y[i] - g[i] * z[i]
-    a = work[2 + n + 2 * nx : 3 + n + 2 * nx, :nx]
-    a[0, :] = nu[0, :]
-    cholesky_solve(L, a.T)
-    Kt = work[3 + n + 2 * nx : 3 + 2 * n + 2 * nx, :nx].T
-    Kt[:, :] = PHt.T
-    cholesky_solve(L, Kt)
+    prior = work[0]  # the predicted state, where the measurement is linearised
+    column = work[1]
+    for a in range(n):
+        prior[a] = z[a]
     log_density = 0.0
     for i in range(nx):
-        log_density -= math.log(L[i, i]) + 0.5 * LOG_2PI + 0.5 * nu[0, i] * a[0, i]
-    gain_update(z, P, Kt, PHt, nu[0])
-    return log_density
-
-
-@numba.njit(cache=True)
-def gain_update(z: np.ndarray, P: np.ndarray, Kt: np.ndarray, PHt: np.ndarray, nu: np.ndarray) -> None:
-    """z += K nu; P -= K (P H^T)^T with K = Kt^T, kept exactly symmetric."""
-    n = z.shape[0]
-    nx = Kt.shape[0]
-    for a in range(n):
-        acc = 0.0
-        for i in range(nx):
-            acc += Kt[i, a] * nu[i]
-        z[a] += acc
-    for a in range(n):
-        for b in range(a + 1):
-            acc = 0.0
-            for i in range(nx):
-                acc += 0.5 * (Kt[i, a] * PHt[b, i] + Kt[i, b] * PHt[a, i])
-            P[a, b] -= acc
-            if a != b:
+        g = 1.0 / prior[nx] if i == own else gain[i]
+        d = -prior[i] * g * g if i == own else 0.0  # d y_i / d theta
+        # the channel's innovation about the state updated so far, through the fixed linearisation
+        nu = y[i] - g * prior[i] - g * (z[i] - prior[i]) - d * (z[nx] - prior[nx])
+        for a in range(n):
+            column[a] = g * P[a, i] + d * P[a, nx]  # P h
+        s = g * column[i] + d * column[nx] + r[i]
+        log_density -= 0.5 * (math.log(s) + LOG_2PI + nu * nu / s)
+        for a in range(n):
+            z[a] += column[a] * nu / s
+        for a in range(n):
+            ka = column[a] / s
+            for b in range(a + 1):
+                P[a, b] -= ka * column[b]
                 P[b, a] = P[a, b]
+    return log_density
 
 
 @numba.njit(cache=True)
@@ -240,14 +179,16 @@ def track(
     M = np.empty(coefficients.shape[2:])
     M0 = np.empty(coefficients.shape[2:])
     dM = np.empty(coefficients.shape[2:])
-    w = np.empty(4)
+    w = np.empty((measured.shape[2], 4))  # the input's coefficients over each interval, shared by the hypotheses
     F = np.empty((n, n))
     T = np.empty((n, n))
     qf = np.empty(n)
-    work = np.empty((4 * n, n))
+    work = np.empty((3, n))
     basis = np.empty((2, coefficients.shape[1]))
     for s in range(systems.shape[0]):
         row = systems[s]
+        for k in range(1, measured.shape[2]):
+            hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, w[k])
         for f in range(n_hyp):
             zf = z[row, f]
             Pf = P[row, f]
@@ -265,7 +206,6 @@ def track(
                 for i in range(nx):
                     g = 1.0 / zf[nx] if i == own[f] else gain[f, i]
                     qf[i] = state_noise * variance[s, i] / (g * g)
-                hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, w)
-                predict(zf, Pf, M, dM, w, h, qf, F, T)
+                predict(zf, Pf, M, dM, w[k], h, qf, F, T)
                 density = correct(zf, Pf, measured[s, :, k], variance[s], gain[f], own[f], work)
                 log_likelihood[row, f] = forget * log_likelihood[row, f] + density
