@@ -12,7 +12,7 @@ from scipy.stats import norm
 
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.loads import Sine, SinesLoad
-from ea_gym.models import spring_mass_damper
+from ea_gym.models import get_model, spring_mass_damper
 from ea_gym.plant import run_model
 from ea_gym.sensors import measure
 from ea_gym.tracking import StepSignals, TrackingConfig, TrackingEstimator, drift_end_of_life
@@ -63,11 +63,12 @@ def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, v
             P[s, f] -= K @ S @ K.T
 
 
-def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0):
-    """Step windows (1 s) of a sine-driven spring-mass-damper whose parameters follow ``parameters(t)``."""
-    model = spring_mass_damper()
+def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, model=None):
+    """Step windows (1 s) of a sine-driven system (default the spring-mass-damper) whose parameters follow ``parameters(t)``."""
+    model = model or spring_mass_damper()
     t = np.arange(int(duration * RATE) + 1) / RATE
-    load = SinesLoad(10.0, (Sine(4.0, 0.25), Sine(2.0, 0.7), Sine(1.0, 1.4)))
+    f = model.excitation_bandwidth / 2.0
+    load = SinesLoad(model.nominal_load, tuple(Sine(a * model.nominal_load, b * f) for a, b in ((0.4, 0.125), (0.2, 0.35), (0.1, 0.7))))
     plant = run_model(model, t, load, parameters)
     rng = np.random.default_rng(seed)
     clean = measure(Monitor(model, 1 / RATE), plant.parameters[None], plant.states[None], noise, rng)
@@ -102,7 +103,7 @@ def test_kernel_matches_numpy_reference() -> None:
 def run_estimator(model, steps, config: TrackingConfig):
     est = TrackingEstimator(model, RATE, 0.0, 1, config=config)
     for s in steps:
-        out = est.update(s, np.ones(1, dtype=bool), np.ones((1, 3), dtype=bool))
+        out = est.update(s, np.ones(1, dtype=bool), np.ones((1, len(est.degradable)), dtype=bool))
     return est, out
 
 
@@ -116,6 +117,18 @@ def test_noise_free_run_recovers_a_constant_parameter() -> None:
     assert k == 1
     assert abs(out.value[0, j] - 95.0) < 0.01
     assert abs(out.drift[0, j]) < 1e-3
+    assert np.argmax(out.log_evidence[0]) == j + 1
+
+
+@pytest.mark.parametrize(("system", "parameter"), [("rlc_circuit", "C1"), ("rlc_circuit", "R1"), ("dc_motor", "K"), ("dc_motor", "J")])
+def test_every_kind_of_parameter_is_recovered(system: str, parameter: str) -> None:
+    """A C, an R, a GY modulus and an I element (whose own momentum's gain 1 / J the filter estimates)."""
+    model = get_model(system)
+    theta = model.parameter_vector({parameter: 1.05 * model.nominal[parameter]})
+    model, steps = plant_steps(lambda t: np.broadcast_to(theta, t.shape + theta.shape), 20.0, model=model)
+    est, out = run_estimator(model, steps, replace(TrackingConfig(), theta_prior=0.1))
+    j = est.degradable.index(parameter)
+    assert out.value[0, j] == pytest.approx(1.05 * model.nominal[parameter], rel=1e-3)
     assert np.argmax(out.log_evidence[0]) == j + 1
 
 
