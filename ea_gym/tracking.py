@@ -204,6 +204,12 @@ class TrackingEstimator:
         )
         for name in self.degradable:
             model.check_name(name, "degradable")
+        if not (math.isfinite(sample_rate) and sample_rate > 0):
+            raise ValueError(f"sample_rate must be a finite number of Hz > 0, got {sample_rate!r}")
+        if not (math.isfinite(noise) and noise >= 0):
+            raise ValueError(f"noise must be a finite fraction >= 0, got {noise!r}")
+        if n_systems < 1:
+            raise ValueError(f"n_systems must be >= 1, got {n_systems!r}")
         self.config = config or TrackingConfig()
         self.h = 1.0 / sample_rate
         self.noise = max(float(noise), self.config.min_noise)

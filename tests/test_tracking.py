@@ -146,6 +146,24 @@ def test_noise_free_run_recovers_a_ramp_slope() -> None:
     assert out.value[0, 1] == pytest.approx(90.0, abs=0.05)
 
 
+def test_adjustment_and_reset() -> None:
+    """A logged adjustment moves its hypothesis's theta by the change; a reset restarts at nominal."""
+    model, steps = plant_steps(None, 2.0)
+    est = TrackingEstimator(model, RATE, 0.0, 2)
+    both = [StepSignals(np.repeat(s.measured, 2, 0), np.repeat(s.load, 2, 0), np.repeat(s.load_rate, 2, 0), np.repeat(s.t, 2)) for s in steps]
+    suspects = np.ones((2, 3), dtype=bool)
+    before = est.update(both[0], np.array([True, False]), suspects)
+    assert before.estimated.tolist() == [[True] * 3, [False] * 3]
+    est.record_adjustment(np.array([1]), np.array([1]), np.array([-4.0]))
+    np.testing.assert_allclose(est.estimates(both[0].t, suspects).value[1, 1], before.value[1, 1] - 4.0)
+    est.reset(np.array([False, True]))
+    after = est.update(both[1], np.zeros(2, dtype=bool), suspects)
+    assert after.value[1, 1] == pytest.approx(100.0, abs=0.01)
+    assert after.estimated.tolist() == [[True] * 3, [False] * 3]
+    with pytest.raises(ValueError, match="signals.measured"):
+        est.update(steps[0], np.zeros(2, dtype=bool), suspects)
+
+
 def test_drift_end_of_life_hand_computed() -> None:
     limits = np.array([85.0, 105.0])
     # certain values: the line 100 - 0.5 s reaches 85 in 30 s

@@ -208,4 +208,6 @@ def track(
                     qf[i] = state_noise * variance[s, i] / (g * g)
                 predict(zf, Pf, M, dM, w[k], h, qf, F, T)
                 density = correct(zf, Pf, measured[s, :, k], variance[s], gain[f], own[f], work)
+                # theta stays where the model is defined (and positive, for a gain 1 / theta)
+                zf[nx] = min(hi[f], max(lo[f], zf[nx]))
                 log_likelihood[row, f] = forget * log_likelihood[row, f] + density
