@@ -148,7 +148,8 @@ def interpolate_discretization(
 def hypothesis_models(model: SystemModel, degradable: Sequence[str], h: float) -> HypothesisModels:
     """The kernel's per-hypothesis data for ``degradable`` parameters at sample period ``h`` (s).
 
-    Each interpolant spans half the lower safe limit to 1.5 x the upper one (or nominal, if beyond).
+    Each interpolant spans half the lower safe limit to 1.5 x the upper one (or nominal, if beyond);
+    every degradable parameter needs safe limits.
     """
     space = model.state_space
     nominal = model.parameter_vector()
@@ -165,7 +166,7 @@ def hypothesis_models(model: SystemModel, degradable: Sequence[str], h: float) -
     lo, hi, own, values = [nominal[0]], [nominal[0]], [-1], [nominal[0]]
     for name in degradable:
         index = space.parameter_names.index(name)
-        lower, upper = model.safe_limits.get(name, (nominal[index], nominal[index]))
+        lower, upper = model.safe_limits[name]
         lo.append(0.5 * min(lower, nominal[index]))
         hi.append(1.5 * max(upper, nominal[index]))
         pieces.append(interpolate_discretization(model, index, lo[-1], hi[-1], h))
@@ -204,6 +205,8 @@ class TrackingEstimator:
         )
         for name in self.degradable:
             model.check_name(name, "degradable")
+            if name not in model.safe_limits:
+                raise ValueError(f"degradable: {name!r} has no safe limits in model {model.name!r}")
         if not (math.isfinite(sample_rate) and sample_rate > 0):
             raise ValueError(f"sample_rate must be a finite number of Hz > 0, got {sample_rate!r}")
         if not (math.isfinite(noise) and noise >= 0):
@@ -303,6 +306,14 @@ class TrackingEstimator:
         """The joint covariance of (theta, drift) of every hypothesis's filter, (N, D, 2, 2)."""
         nx = self.model.state_space.n_states
         return self.P[:, 1:, nx:, nx:].copy()
+
+    def end_of_life(self, t: np.ndarray, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``drift_end_of_life`` of every hypothesis's filter against its parameter's safe limits, (N, D) each (s);
+        ``t`` (N,): the time the filters' values describe (s)."""
+        nx = self.model.state_space.n_states
+        limits = np.array([self.model.safe_limits[name] for name in self.degradable], dtype=float)
+        times = np.repeat(np.asarray(t, dtype=float)[:, None], len(self.degradable), 1)
+        return drift_end_of_life(self.z[:, 1:, nx], self.z[:, 1:, nx + 1], self.covariance(), limits, times, confidence)
 
 
 def drift_end_of_life(

@@ -32,7 +32,7 @@ from ea_gym.models import get_model
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import add_sensor_noise, measure
-from ea_gym.tracking import StepSignals, TrackingConfig, TrackingEstimator, drift_end_of_life
+from ea_gym.tracking import StepSignals, TrackingConfig, TrackingEstimator
 
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
@@ -90,13 +90,12 @@ def track_run(scenario: Scenario, signals: Signals, config: TrackingConfig) -> d
     """The true hypothesis's estimate, RUL and interval, and the evidence ranking, at every step end."""
     estimator = TrackingEstimator(scenario.model, scenario.sample_rate, scenario.noise, 1, config=config)
     j = estimator.degradable.index(fault_parameter(scenario))
-    limits = np.asarray(scenario.model.safe_limits[fault_parameter(scenario)], dtype=float)
     rows: dict[str, list] = {"value": [], "rul": [], "low": [], "high": [], "best": []}
     suspects = np.ones((1, len(estimator.degradable)), dtype=bool)
     for k in range(len(signals.t)):
         step = StepSignals(signals.measured[k], signals.load[k], signals.load_rate[k], signals.t[k : k + 1])
         est = estimator.update(step, np.ones(1, dtype=bool), suspects)
-        eol, low, high = drift_end_of_life(est.value[0, j], est.drift[0, j], estimator.covariance()[0, j], limits, est.time[0, j])
+        eol, low, high = (end[0, j] for end in estimator.end_of_life(signals.t[k : k + 1]))
         rows["value"].append(est.value[0, j])
         rows["rul"].append(eol - signals.t[k])
         rows["low"].append(low - signals.t[k])
