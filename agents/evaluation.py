@@ -182,7 +182,7 @@ def _episode(policy: Any, env: Any, seed: int) -> dict[str, float]:
     return {key: float(value[0]) for key, value in tally.records().items()}
 
 
-def _batch(policy: Any, env: Any, seeds: Sequence[int], progress: Any) -> dict[str, np.ndarray]:
+def _batch(policy: Any, env: Any, seeds: Sequence[int] | np.ndarray, progress: Any) -> dict[str, np.ndarray]:
     """One episode per seed on a vector environment of ``len(seeds)`` envs, every episode run once to its end."""
     n = len(seeds)
     observation, _ = env.reset(seed=[int(s) for s in seeds])

@@ -25,10 +25,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import VecNormalize
 
@@ -65,7 +66,7 @@ def collect(
     steps: int,
     restore: Callable[[dict], dict] = lambda o: o,
     learner: OnPolicyAlgorithm | None = None,
-) -> dict[str, np.ndarray]:
+) -> dict[str, Any]:
     """Run ``steps`` environment steps in total, labelled with ``teacher``'s actions (SB3 ``predict`` on
     environment observations).
 
@@ -83,7 +84,7 @@ def collect(
     state = None
     observations, actions, taken, rewards, dones, returns = [], [], [], [], [], []
     for _ in range(max(steps // n, 1)):
-        raw = env.get_original_obs()
+        raw = cast(dict[str, np.ndarray], env.get_original_obs())  # Dict observations
         label, state = teacher.predict(restore(raw), state=state, episode_start=starts, deterministic=True)
         label = np.asarray(label)
         action = label if learner is None else learner.predict(env.normalize_obs(raw), deterministic=True)[0]
@@ -169,7 +170,7 @@ def clone(
     maintenance = actions > 0
     return CloningResult(
         steps=int(len(actions)),
-        action_counts=np.bincount(actions, minlength=model.action_space.n).tolist(),
+        action_counts=np.bincount(actions, minlength=int(cast(spaces.Discrete, model.action_space).n)).tolist(),
         accuracy=float(np.mean(predicted == actions)),
         maintenance_recall=float(np.mean(predicted[maintenance] == actions[maintenance])) if maintenance.any() else None,
         teacher_mean_return=float(np.mean(teacher_returns)) if len(teacher_returns) else None,
@@ -185,7 +186,7 @@ def _samples(batches: list[dict[str, Any]], env: VecNormalize, gamma: float) -> 
     for data in batches:
         T, n = data["actions"].shape
         flat = {key: value.reshape((T * n,) + value.shape[2:]) for key, value in data["observations"].items()}
-        for key, value in env.normalize_obs(flat).items():
+        for key, value in cast(dict[str, np.ndarray], env.normalize_obs(flat)).items():
             observations.setdefault(key, []).append(value)
         actions.append(data["actions"].reshape(-1))
         targets.append(discounted_returns(env.normalize_reward(data["rewards"]), data["dones"], gamma).reshape(-1))

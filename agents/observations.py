@@ -24,7 +24,7 @@ every element's EA on a log scale, log10(EA / 1 uJ) / 6 clipped to [0, 1] (1 uJ 
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 from gymnasium import spaces
@@ -54,11 +54,11 @@ class LearnerView(VecEnvWrapper):
     """
 
     def __init__(self, venv: VecEnv, activity: bool = False):
-        space: spaces.Dict = venv.observation_space
+        space = cast(spaces.Dict, venv.observation_space)
         self.activity = bool(activity) and "ea" in space.spaces
         if self.activity:
             space = spaces.Dict({**space.spaces, "activity": spaces.Box(0.0, 1.0, space["ea"].shape, np.float32)})
-        self.scale = math.log1p(float(np.max(space["rul"].high))) if "rul" in space.spaces else None
+        self.scale = math.log1p(float(np.max(cast(spaces.Box, space["rul"]).high))) if "rul" in space.spaces else None
         if self.scale is not None:
             space = spaces.Dict({**space.spaces, "rul": spaces.Box(0.0, 1.0, space["rul"].shape, np.float32)})
         self.nominal = None
@@ -87,11 +87,11 @@ class LearnerView(VecEnvWrapper):
         return restored
 
     def reset(self) -> Any:
-        return self.forward(self.venv.reset())
+        return self.forward(cast(dict[str, np.ndarray], self.venv.reset()))
 
     def step_wait(self) -> Any:
         observation, rewards, dones, infos = self.venv.step_wait()
         for info in infos:  # SB3 keeps the last observation of a finished episode here
             if "terminal_observation" in info:
                 info["terminal_observation"] = self.forward(info["terminal_observation"])
-        return self.forward(observation), rewards, dones, infos
+        return self.forward(cast(dict[str, np.ndarray], observation)), rewards, dones, infos

@@ -119,7 +119,8 @@ class ActionMap:
         positions = None
         if nominal is not None and limits is not None:
             positions = tuple((nominal[c] - limits[c][0]) / (limits[c][1] - limits[c][0]) for c in values[1])
-        return cls(*values, obs_mode=getattr(config, "obs_mode", None), nominal_positions=positions, elements=elements)
+        meanings, components, classes = values
+        return cls(meanings, components, classes, obs_mode=getattr(config, "obs_mode", None), nominal_positions=positions, elements=elements)
 
 
 def _first_attr(env: Any, name: str) -> Any:
@@ -416,7 +417,7 @@ class CorrectiveBand(RulePolicy):
         quiet_activity: EA (J) over a step below which a component counts as quiet, > 0.
     """
 
-    needs = ("maintenance_in_progress", "diagnosis", "parameter_estimate")
+    needs: tuple[str, ...] = ("maintenance_in_progress", "diagnosis", "parameter_estimate")  # "ea" too with a quiet_band
     hint = " (make the env with obs_mode='phm' or 'oracle')"
 
     def __init__(

@@ -15,7 +15,7 @@ import shutil
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
@@ -23,6 +23,7 @@ from stable_baselines3 import A2C, DQN, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 import ea_gym  # noqa: F401 - registers the environments
@@ -105,7 +106,7 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
 def normalize(env: VecEnv, training: bool = True) -> VecNormalize:
     """Standardise the unbounded observation keys (see ``agents.observations``) and the rewards."""
     return VecNormalize(env, training=training, norm_obs=True, norm_reward=training, gamma=0.99,
-                        norm_obs_keys=normalised_keys(env.observation_space))
+                        norm_obs_keys=normalised_keys(cast(gym.spaces.Dict, env.observation_space)))
 
 
 def default_hyperparameters(algo: str, n_envs: int, cloned: bool = False) -> dict[str, Any]:
@@ -160,7 +161,8 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
         if run.algo == "dqn":
             raise ValueError("a teacher can only be cloned into PPO or A2C (an actor-critic), not DQN")
         with single_threaded_torch():
-            cloning = asdict(clone(model, env, make_teacher(run, env), run.teacher_steps, restore=env.venv.inverse, dagger_rounds=run.dagger_rounds))
+            learner, view = cast(OnPolicyAlgorithm, model), cast(LearnerView, env.venv)  # PPO or A2C; make_vec_env wraps a LearnerView
+            cloning = asdict(clone(learner, env, make_teacher(run, env), run.teacher_steps, restore=view.inverse, dagger_rounds=run.dagger_rounds))
             # the cloned policy is a candidate too: reinforcement learning must beat it to replace it
             rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
         cloning["validation_reward"] = float(np.mean(rewards))
@@ -251,6 +253,6 @@ class NormalizedPolicy:
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         batched = observation["time_since_maintenance"].ndim == 2
         batch = observation if batched else {key: value[None] for key, value in observation.items()}
-        learner_view = self.normalization.normalize_obs(self.normalization.venv.forward(batch))
+        learner_view = self.normalization.normalize_obs(cast(LearnerView, self.normalization.venv).forward(batch))
         actions, state = self.model.predict(learner_view, state, episode_start, deterministic)
         return (actions if batched else actions[0]), state
