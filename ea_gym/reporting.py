@@ -27,19 +27,16 @@ import math
 import os
 import shutil
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 from matplotlib.colors import LogNorm
 
-from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import residual_spectrogram
 from ea_gym.files import finite_or_none, json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import eol_error, estimation_errors, prognostic_report
-from ea_gym.phm import ChainRun, PHMChain
-from ea_gym.prognosis import EndOfLife, predict_end_of_life
+from ea_gym.phm import ChainRun, HealthStatus, PHMChain
 from ea_gym.pyplot import plt
 from ea_gym.scenario import Scenario
 
@@ -87,25 +84,13 @@ def _step_time(chain: PHMChain) -> float:
     return float(getattr(chain, "step_time", chain.config.step))
 
 
-def _ready(run: ChainRun, chain: PHMChain) -> np.ndarray:
-    """Steps at which the chain ran its estimator: a full inversion window seen
-    (``steps >= estimate_steps``) and, as the chain estimates nothing before, an alarm raised."""
-    return np.array(
-        [j + 1 >= chain.estimate_steps and bool(s.alarm[0]) for j, s in enumerate(run.statuses)], dtype=bool
-    )
+def _ready(run: ChainRun) -> np.ndarray:
+    """Steps at which the chain's estimator updated an estimate."""
+    return np.array([bool(s.estimation.estimated[0].any()) for s in run.statuses], dtype=bool)
 
 
 def _isolated(run: ChainRun) -> int:
     return int(run.statuses[-1].isolated[0]) if run.statuses else 0
-
-
-def _inertia_index(chain: PHMChain) -> int:
-    """Position among the monitor's elements of the I element whose residual the isolation reads."""
-    index = getattr(chain.monitor, "_inertia_index", None)
-    if index is not None:
-        return int(index)
-    elements = chain.model.graph.elements
-    return next(i for i, name in enumerate(chain.monitor.elements) if elements[name].kind is Kind.I)
 
 
 def _fault_onset(scenario: Scenario) -> float | None:
@@ -129,58 +114,14 @@ def _segment(profile, t: np.ndarray) -> np.ndarray:
     return np.searchsorted(np.asarray(profile.times), np.asarray(t, dtype=float), side="right") - 1
 
 
+def _limit(status: HealthStatus) -> str | None:
+    """Which limit the status's End of Life refers to."""
+    prediction = status.end_of_life[0]
+    return None if prediction is None else prediction.limit
+
+
 def _truth_limits(scenario: Scenario, parameter: str) -> tuple[float, float]:
     return tuple(float(x) for x in scenario.model.safe_limits[parameter])
-
-
-@dataclass(frozen=True)
-class _Extrapolation:
-    """The trend fit behind one status's End of Life, rebuilt from the statuses."""
-
-    t: float  # prediction time (s)
-    parameter: int  # index among chain.degradable
-    times: np.ndarray  # fitted estimates' time stamps (s)
-    values: np.ndarray  # fitted estimates
-    coefficients: np.ndarray  # polynomial in (time - t)
-    prediction: EndOfLife | None
-
-
-def _extrapolation(run: ChainRun, chain: PHMChain, i: int, ready: np.ndarray | None = None) -> _Extrapolation | None:
-    """Rebuild the chain's End-of-Life fit at step ``i``.
-
-    The chain keeps, for every degradable parameter, the estimates of the last ``history_length``
-    ready steps, NaN where it did not estimate that parameter (after isolation only the isolated one
-    is estimated); the status records which was isolated, so the history can be replayed exactly.
-    """
-    status = run.statuses[i]
-    isolated = int(status.isolated[0])
-    if isolated == 0:
-        return None
-    d = isolated - 1
-    ready = _ready(run, chain) if ready is None else ready
-    steps = [j for j in range(i + 1) if ready[j]][-chain.history_length :]
-    fresh = [j for j in steps if int(run.statuses[j].isolated[0]) in (0, isolated)]
-    if not fresh:
-        return None
-    times = np.array([run.statuses[j].t[0] - chain.estimate_lag for j in fresh])
-    values = np.array([run.statuses[j].estimates[0, d] for j in fresh])
-    t_now = float(status.t[0])
-    config = chain.extrapolation
-    limits = chain.model.safe_limits[chain.degradable[d]]
-    prediction = predict_end_of_life(times, values, limits, t_now, config)
-    recent = times >= t_now - config.span
-    if recent.sum() < config.degree + 1:
-        return None
-    coefficients = np.polyfit(times[recent] - t_now, values[recent], config.degree)
-    return _Extrapolation(t_now, d, times[recent], values[recent], coefficients, prediction)
-
-
-def _limit_of(run: ChainRun, chain: PHMChain, i: int, ready: np.ndarray) -> str | None:
-    """Which limit the End of Life at step ``i`` refers to."""
-    fit = _extrapolation(run, chain, i, ready)
-    if fit is not None and fit.prediction is not None:
-        return fit.prediction.limit
-    return None
 
 
 # --------------------------------------------------------------------------------------------------
@@ -192,16 +133,15 @@ def _estimate_series(run: ChainRun, chain: PHMChain, isolated: int) -> dict[str,
     if isolated == 0:
         return {"parameter": None, "t": [], "value": []}
     d = isolated - 1
-    ready = _ready(run, chain)
-    t = [float(s.t[0]) - chain.estimate_lag for s, r in zip(run.statuses, ready) if r]
+    ready = _ready(run)
+    t = [float(s.estimation.time[0, d]) for s, r in zip(run.statuses, ready) if r]
     value = [float(s.estimates[0, d]) for s, r in zip(run.statuses, ready) if r]
     return {"parameter": chain.degradable[d], "t": t, "value": value}
 
 
 def _eol_predictions(run: ChainRun, chain: PHMChain) -> list[dict[str, Any]]:
     predictions = []
-    ready = _ready(run, chain)
-    for i, s in enumerate(run.statuses):
+    for s in run.statuses:
         eol = float(s.eol[0])
         if not math.isfinite(eol):
             continue
@@ -212,7 +152,7 @@ def _eol_predictions(run: ChainRun, chain: PHMChain) -> list[dict[str, Any]]:
                 "t": t,
                 "parameter": chain.classes[isolated] if isolated > 0 else None,
                 "eol": eol,
-                "limit": _limit_of(run, chain, i, ready),
+                "limit": _limit(s),
                 "rul": eol - t,
                 "rul_low": finite_or_none(float(s.eol_low[0]) - t),
                 "rul_high": finite_or_none(float(s.eol_high[0]) - t),
@@ -319,7 +259,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
     isolated_parameter = chain.classes[isolated] if isolated > 0 else None
 
     # the statuses the chain's isolation averages: alarm raised and a full frame seen
-    counted = [s.probabilities[0] for j, s in enumerate(statuses) if s.alarm[0] and j + 1 >= chain.frame_steps]
+    counted = [s.probabilities[0] for s in statuses if s.counted[0]]
     probabilities = np.mean(counted, axis=0) if counted else last.probabilities[0]
 
     estimate = _estimate_series(run, chain, isolated)
@@ -403,7 +343,7 @@ def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario, path
     sub = chain.monitor.config.sub_window
     frame = round(chain.config.frame / sub)
     hop = max(round(1.0 / sub), 1)
-    i = _inertia_index(chain)
+    i = chain.monitor.inertia_index
     name = chain.monitor.elements[i]
     series = run.residual_series[i]
     fig, ax = plt.subplots(figsize=(10, 5))
@@ -475,11 +415,11 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
     right = end
     colors = ["tab:orange", "tab:purple", "tab:brown"]
     for k, i in enumerate(_fit_steps(run, chain, results) if estimate["parameter"] else []):
-        fit = _extrapolation(run, chain, i)
-        if fit is None or fit.prediction is None or not math.isfinite(fit.prediction.eol):
+        prediction = run.statuses[i].end_of_life[0]
+        if prediction is None or not math.isfinite(prediction.eol):
             continue
-        eol = fit.prediction.eol
-        level = lower if fit.prediction.limit == "lower" else upper
+        fit, eol = prediction.fit, prediction.eol
+        level = lower if prediction.limit == "lower" else upper
         x = np.linspace(fit.times[0], eol, 200)
         color = colors[k % len(colors)]
         ax.plot(x, np.polyval(fit.coefficients, x - fit.t), color=color, lw=1.4, ls="-.",
@@ -490,11 +430,11 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
         if scenario.fault is not None and scenario.fault.parameter == parameter:
             true_eol = float(scenario.fault.profile.trend_end_of_life(np.array([fit.t]), _truth_limits(scenario, parameter))[0])
             if math.isfinite(true_eol):
-                true_level = _truth_limits(scenario, parameter)[0 if fit.prediction.limit == "lower" else 1]
+                true_level = _truth_limits(scenario, parameter)[0 if prediction.limit == "lower" else 1]
                 ax.plot([true_eol], [true_level], "o", color=color, ms=13, mfc="none", mew=1.5, zorder=6)
                 text += f" (true {true_eol:.1f} s)"
                 right = max(right, true_eol)
-        offset = 8 if fit.prediction.limit == "upper" else -16
+        offset = 8 if prediction.limit == "upper" else -16
         ax.annotate(text, (eol, level), textcoords="offset points", xytext=(-150 if eol > 0.8 * right else -40, offset),
                     color=color, fontsize=9, fontweight="bold")
         right = max(right, eol)

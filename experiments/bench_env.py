@@ -87,8 +87,9 @@ from machine import machine_info  # noqa: E402 - experiments/machine.py
 from threadpoolctl import threadpool_limits
 
 import ea_gym.env.core as core_module
-import ea_gym.phm as phm_module
-import ea_gym.prognosis as prognosis_module
+import ea_gym.phm.inversion as inversion_module
+import ea_gym.phm.isolation as isolation_module
+import ea_gym.phm.prognosis as prognosis_module
 from ea_gym.degradation import WearConfig
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.env import ENV_ID
@@ -206,9 +207,9 @@ def run(
         durations[i] = perf() - t0
         failures += info["failed"]
         if chain is not None:
-            alarm[i] = chain.state["alarm"][0]
-            estimating[i] = alarm[i] and chain.state["steps"][0] >= chain.estimate_steps
-            isolating[i] = chain.state["steps"][0] >= chain.frame_steps
+            alarm[i] = chain.detector.state.alarm[0]
+            estimating[i] = alarm[i] and chain.history.steps[0] >= chain.estimate_steps
+            isolating[i] = chain.history.steps[0] >= chain.frame_steps
         if terminated or truncated:  # not expected with continue_after_failure and horizon 1e9
             env.reset()
     total = float(durations.sum())
@@ -295,19 +296,20 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
     if chain is not None:
         targets += [
             (chain, "update", "chain.update"),
-            (chain, "_statistic", "_statistic"),
-            (chain, "_classify", "_classify"),
-            (chain, "_isolate", "_isolate"),
-            (chain, "_estimate", "_estimate"),
-            (chain, "_prognose", "_prognose"),
+            (chain.detector, "update", "detector.update"),
+            (chain.isolation, "classify", "isolation.classify"),
+            (chain.isolation, "fuse", "isolation.fuse"),
+            (chain.isolation, "balance_evidence", "isolation.balance_evidence"),
+            (chain.estimator, "update", "estimator.update"),
+            (chain.prognosis, "update", "prognosis.update"),
             (monitor, "frame_of", "monitor.frame_of"),
             (monitor, "state_filter", "monitor.state_filter"),
-            (phm_module, "frame_features", "frame_features"),
-            (phm_module, "predict_end_of_life", "predict_end_of_life"),
+            (isolation_module, "frame_features", "frame_features"),
+            (prognosis_module, "predict_end_of_life", "predict_end_of_life"),
             (chain.classifier, "predict_proba", "classifier.predict_proba"),
-            (chain.estimator, "estimate", "estimator.estimate"),
-            (chain.estimator, "_candidate_signature", "estimator._candidate_signature"),
-            (prognosis_module, "simulate_measured", "simulate_measured (candidates)"),
+            (chain.estimator.inversion, "estimate", "inversion.estimate"),
+            (chain.estimator.inversion, "candidate_signature", "inversion.candidate_signature"),
+            (inversion_module, "simulate_measured", "simulate_measured (candidates)"),
         ]
     saved: list[tuple[Any, str, bool, Any]] = []
     try:
@@ -340,11 +342,12 @@ def stage_rows(p: Profiler, steps: int, step_total: float) -> list[tuple[str, fl
         ("measurement gains and products (_operate rest)", p.self_time(*O) + p.inclusive(*O, "measurement_gain")),
         ("measurement noise (MaintenanceCore._sensor_noise)", p.inclusive(*O, "_sensor_noise")),
         ("EA monitor (Monitor.update)", p.inclusive(*H, "monitor.update")),
-        ("detection (PHMChain._statistic)", p.inclusive(*H, "_statistic")),
-        ("isolation network (_classify: frame, features, torch)", p.inclusive(*H, "_classify")),
-        ("isolation belief (_isolate: network x EA fits)", p.inclusive(*H, "_isolate")),
-        ("prognosis: EA inversion (_estimate)", p.inclusive(*H, "_estimate")),
-        ("prognosis: EoL extrapolation (_prognose)", p.inclusive(*H, "_prognose")),
+        ("detection (Detector.update)", p.inclusive(*H, "detector.update")),
+        ("isolation network (Isolation.classify: frame, features, torch)", p.inclusive(*H, "isolation.classify")),
+        ("isolation belief (Isolation.fuse + balance_evidence: network x EA fits x balance)",
+         p.inclusive(*H, "isolation.fuse") + p.inclusive(*H, "isolation.balance_evidence")),
+        ("estimation: EA inversion (estimator.update)", p.inclusive(*H, "estimator.update")),
+        ("prognosis: EoL extrapolation (prognosis.update)", p.inclusive(*H, "prognosis.update")),
         ("chain bookkeeping (PHMChain.update rest)", p.self_time(*H)),
         ("observation (MaintenanceCore._observe)", observe),
         ("core step rest (actions, wear, costs, RUL)", p.self_time(*C) + p.inclusive(*C, "wear.advance") + p.inclusive(*C, "_true_rul")),
@@ -443,10 +446,10 @@ def soak(args: argparse.Namespace) -> dict[str, Any]:
             elif not space.contains(obs):
                 outside += 1
             failures += info["failed"]
-            alarm = bool(chain.state["alarm"][0])
+            alarm = bool(chain.detector.state.alarm[0])
             alarm_steps += alarm
-            estimating_steps += alarm and chain.state["steps"][0] >= chain.estimate_steps
-            isolating_steps += chain.state["steps"][0] >= chain.frame_steps
+            estimating_steps += alarm and chain.history.steps[0] >= chain.estimate_steps
+            isolating_steps += chain.history.steps[0] >= chain.frame_steps
             if terminated or truncated:
                 resets += 1
                 env.reset()

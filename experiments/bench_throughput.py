@@ -49,9 +49,9 @@ KWARGS = {"obs_mode": "phm", "continue_after_failure": True}
 def _alarm_share(env) -> float:
     unwrapped = env.unwrapped if hasattr(env, "unwrapped") else env
     if hasattr(unwrapped, "core"):
-        return float(unwrapped.core.chain.state["alarm"].mean())
+        return float(unwrapped.core.chain.detector.state.alarm.mean())
     cores = [e.unwrapped.core for e in unwrapped.envs]
-    return float(np.mean([c.chain.state["alarm"][0] for c in cores]))
+    return float(np.mean([c.chain.detector.state.alarm[0] for c in cores]))
 
 
 def time_vector(kind: str, n: int, steps: int, warmup: int, seed: int) -> dict:
@@ -76,7 +76,7 @@ def time_single(steps: int, warmup: int, seed: int) -> dict:
     rng = np.random.default_rng(seed)
     for _ in range(warmup):
         env.step(int(rng.integers(env.action_space.n)))
-    alarm = float(env.unwrapped.core.chain.state["alarm"][0])
+    alarm = float(env.unwrapped.core.chain.detector.state.alarm[0])
     started = time.perf_counter()
     for _ in range(steps):
         env.step(int(rng.integers(env.action_space.n)))

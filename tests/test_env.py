@@ -143,8 +143,8 @@ def test_corrective_actions_are_logged_in_the_chain():
     for _ in range(3):
         env.step(1 + env.unwrapped.maintainable_components.index("k"))
     # no alarm yet, so no estimate of its own: the chain believes nominal plus what maintenance did
-    assert not chain.state["alarm"][0]
-    assert chain.state["estimates"][0, k] == pytest.approx(101.2)
+    assert not chain.detector.state.alarm[0]
+    assert chain.estimator.state.estimates[0, k] == pytest.approx(101.2)
 
 
 def test_failure_terminates_or_forces_a_replacement():

@@ -7,8 +7,9 @@ import pytest
 
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import rlc_circuit, spring_mass_damper
-from ea_gym.phm import _push, _push_median
-from ea_gym.prognosis import EAParameterEstimator
+from ea_gym.phm.estimation import push_median
+from ea_gym.phm.history import push_window
+from ea_gym.phm.inversion import EAInversion
 
 
 def _close(actual, expected):
@@ -45,9 +46,9 @@ def _reference_update(monitor, context, measured, reference, load):
     energy = _sums(0.5 * (power[..., :-1] + power[..., 1:]) * h, monitor.n_sub)
     for name, (j, inertance) in monitor._inertance.items():
         energy[:, monitor.elements.index(name)] = 0.5 * inertance * np.diff(smooth[:, j, :: monitor.n_sub] ** 2, axis=-1)
-    balance = energy[:, monitor._source_index].sum(1) - energy[:, monitor._component_index].sum(1)
+    balance = energy[:, monitor._source_index].sum(1) - energy[:, monitor.component_index].sum(1)
     residual = _sums(balance[:n] - balance[n:], monitor.n_balance)
-    stored = _sums(energy[:n, monitor._component_index], monitor.n_balance)
+    stored = _sums(energy[:n, monitor.component_index], monitor.n_balance)
     raw = measured[..., 1:]
     noise = np.stack([((raw - smooth[:n, :-1, 1:]) ** 2).sum(-1), (raw**2).sum(-1)], axis=1)
     expected = {
@@ -80,7 +81,7 @@ def test_chunks_with_context_and_fresh_systems_match_numpy(make_model):
 def test_powers_and_signature_match_numpy_for_shared_and_distinct_loads():
     model = spring_mass_damper()
     monitor = Monitor(model, 0.01)
-    estimator = EAParameterEstimator(monitor)
+    estimator = EAInversion(monitor)
     rng = np.random.default_rng(4)
     signals = rng.standard_normal((4, 3, 3, 200))
     signals[:2, :, -1] = signals[:2, :1, -1]  # candidates of one system share the load
@@ -128,7 +129,7 @@ def test_pushed_median_equals_numpy_nanmedian():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN windows: NaN, as the kernel gives
             expected[rows, columns] = np.nanmedian(expected_raw[rows, columns], axis=-1)
-        _push_median(raw, rows, columns, values, median)
+        push_median(raw, rows, columns, values, median)
         np.testing.assert_array_equal(raw, expected_raw)
         np.testing.assert_array_equal(median, expected)
 
@@ -143,9 +144,9 @@ def test_pushed_history_equals_concatenating_and_dropping():
         for step in range(3 * length):
             new = rng.standard_normal((4, 2, k))
             expected = np.concatenate([expected, new], axis=-1)[..., k:]
-            buffer = _push(buffer, new)
+            buffer = push_window(buffer, new)
             np.testing.assert_array_equal(buffer, expected)
             if step % 5 == 2:
                 buffer[1] = expected[1] = rng.standard_normal((2, length))
-        buffer = _push(buffer.copy(), new)  # a plain array again
+        buffer = push_window(buffer.copy(), new)  # a plain array again
         np.testing.assert_array_equal(buffer, np.concatenate([expected, new], axis=-1)[..., k:])

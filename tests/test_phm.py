@@ -10,14 +10,18 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.metrics import alpha_lambda
 from ea_gym.models import spring_mass_damper
-from ea_gym.phm import PHMConfig, balance_chi_square, build_chain, run_scenario
-from ea_gym.plant import run_model
-from ea_gym.prognosis import (
-    EAParameterEstimator,
+from ea_gym.phm import (
+    EAInversion,
     EstimatorConfig,
     ExtrapolationConfig,
+    ParameterEstimates,
+    PHMConfig,
+    balance_chi_square,
+    build_chain,
     predict_end_of_life,
+    run_scenario,
 )
+from ea_gym.plant import run_model
 from ea_gym.reproduce import LOADS, phase_eol
 from ea_gym.scenario import load_scenario
 from ea_gym.sensors import measure
@@ -110,23 +114,25 @@ def test_no_false_alarm_on_a_fault_free_run_at_one_percent_noise():
 
 def test_isolation_follows_the_hypothesis_the_ea_fits_when_the_network_is_unsure():
     chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
-    s = chain.state
-    s["alarm"][:] = True
+    isolation = chain.isolation
+    alarm = np.ones(2, dtype=bool)
     assert chain.classes == ("none", "k", "m", "b") and chain.degradable == ("k", "m", "b")
     # the network leans to "none", then b (a small fault it cannot yet tell apart), in both systems
-    s["probability_average"][:] = [0.6, 0.0, 0.0, 0.3]
+    isolation.state.probability_average[:] = [0.6, 0.0, 0.0, 0.3]
     # system 0: the k hypothesis fits the EA 100 times better than m or b, and 1000 times better than the
     # nominal model ("none"); system 1: nothing fitted yet
-    s["fit"][0] = np.log([1e-3, 1e-6, 1e-4, 1e-4])
-    diagnosis = chain._isolate()
+    log_evidence = np.full((2, 4), np.nan)
+    log_evidence[0] = -np.log([1e-3, 1e-6, 1e-4, 1e-4])
+    fusion = isolation.fuse(alarm, log_evidence, np.zeros((2, 3), dtype=bool), isolation.balance_evidence(chain.history, alarm))
+    diagnosis = fusion.belief
     # belief in class j = (network share + floor) x c_min / c_j, normalised
     f = chain.config.network_floor
     weights = np.array([(2 / 3 + f) * 1e-3, f, f * 1e-2, (1 / 3 + f) * 1e-2])
     np.testing.assert_allclose(diagnosis[0], weights / weights.sum(), rtol=1e-9)
-    assert chain.classes[s["isolated"][0]] == "k" and s["confident"][0]
+    assert chain.classes[fusion.isolated[0]] == "k" and fusion.confident[0]
     # without fits, the network's belief stands (with the floor): b is the suspect, and not a confident one
     np.testing.assert_allclose(diagnosis[1], (np.array([2 / 3, 0.0, 0.0, 1 / 3]) + f) / (1 + 4 * f), rtol=1e-9)
-    assert chain.classes[s["isolated"][1]] == "b" and not s["confident"][1]
+    assert chain.classes[fusion.isolated[1]] == "b" and not fusion.confident[1]
 
 
 def test_balance_chi_square_is_the_nested_regressions_rise_in_residual_and_singles_out_the_faulty_column():
@@ -153,20 +159,27 @@ def test_balance_chi_square_is_the_nested_regressions_rise_in_residual_and_singl
 
 def test_a_logged_adjustment_moves_the_end_of_life_by_the_change_over_the_wear_rate():
     chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
-    s = chain.state
+    history, estimates = chain.prognosis.state, chain.estimator.state.estimates
     m = chain.degradable.index("m")
     # both systems: m isolated with confidence, its estimates falling 0.01 kg/s from 9.5 kg for 20 s
     times = np.arange(20.0)
-    s["time"][:] = 20.0
-    s["confident"][:], s["isolated"][:] = True, 1 + m
-    s["history_t"][:, -20:] = times
-    s["history"][:, m, -20:] = 9.5 - 0.01 * times
-    s["estimates"][:, m] = s["history"][:, m, -1]
-    _, before = chain._prognose(s["estimates"])
+    history.history_t[:, :, -20:] = times
+    history.history[:, m, -20:] = 9.5 - 0.01 * times
+    estimates[:, m] = history.history[:, m, -1]
+
+    def prognose():  # a step at 20 s that estimated nothing new
+        nothing = np.full(estimates.shape, np.nan)
+        step = ParameterEstimates(
+            value=estimates.copy(), variance=nothing, drift=nothing, drift_variance=nothing, log_evidence=np.full((2, 4), np.nan),
+            estimated=np.zeros(estimates.shape, dtype=bool), time=nothing,
+        )
+        prognosis = chain.prognosis.update(step, np.full(2, 1 + m), np.ones(2, dtype=bool), np.full(2, 20.0))
+        return np.stack([prognosis.eol, prognosis.eol_low, prognosis.eol_high], axis=1)
+
+    before = prognose()
     # a corrective action on system 0 put 0.05 kg back: the wear has 5 s more to go
     chain.record_adjustment(np.array([0]), np.array([m]), np.array([0.05]))
-    estimates = s["estimates"].copy()
-    _, after = chain._prognose(estimates)
+    after = prognose()
     lower = MODEL.safe_limits["m"][0]
     assert before[1, 0] == pytest.approx(19.0 + (9.5 - 0.19 - lower) / 0.01, rel=1e-6)  # the trend's crossing
     assert after[0, 0] - before[0, 0] == pytest.approx(0.05 / 0.01, rel=1e-6)
@@ -210,7 +223,7 @@ def test_energy_balance_deviation_points_at_a_stiffness_fault_without_noise():
     assert np.abs(beta[[0, 2]]).max() <= 0.5 * abs(beta[1])
 
 
-def _noise_free_window(k, config=EstimatorConfig()):
+def _noise_free_window(k, config=None):
     """An estimator and one 6-s noise-free window of the spring-mass-damper with spring ``k`` (N/m):
     (estimator, start state, load, load rate, measured signature), each with a leading axis of 1."""
     t = np.arange(601) * 0.01
@@ -219,7 +232,7 @@ def _noise_free_window(k, config=EstimatorConfig()):
     trajectory = run_model(MODEL, t, load, lambda s: np.broadcast_to(theta, s.shape + theta.shape), np.array([0.3, 0.12]))
     monitor = Monitor(MODEL, 0.01)
     signals = measure(monitor, theta[None], trajectory.states[None], 0.0, np.random.default_rng(0))
-    estimator = EAParameterEstimator(monitor, config)
+    estimator = EAInversion(monitor, EstimatorConfig() if config is None else config)
     c = monitor.config.smoothing
     power, _ = monitor.powers(np.concatenate([signals, load.value(t)[None, None]], axis=1)[..., c:], c)
     start = monitor.state_filter(signals[..., : 2 * c + 1])[..., c]

@@ -98,7 +98,7 @@ class Monitor:
         elements = model.graph.elements
         self.elements = tuple(n for n, e in elements.items() if not e.kind.is_junction)
         self.components = model.rco_elements
-        self._component_index = np.array([self.elements.index(c) for c in self.components])
+        self.component_index = np.array([self.elements.index(c) for c in self.components])
         # positions in ``components`` of the R elements (all components if there is none): their EA is
         # the scale of the energy-balance residual, where a dissipator's fault shows
         dissipators = [j for j, c in enumerate(self.components) if elements[c].kind is Kind.R]
@@ -106,7 +106,7 @@ class Monitor:
         inertias = [n for n in self.components if elements[n].kind is Kind.I]
         if not inertias:
             raise ValueError(f"model {model.name!r} has no I element, whose EA residual the isolation uses")
-        self._inertia_index = self.elements.index(inertias[0])
+        self.inertia_index = self.elements.index(inertias[0])
         self._source_index = np.array([self.elements.index(s) for s in space.input_names])
         nominal = model.parameter_vector()
         mats = space.matrices(nominal)
@@ -153,7 +153,7 @@ class Monitor:
         else:
             self._context[np.concatenate([systems, systems])] = np.nan
 
-    def _buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    def buffer(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
         """A scratch array of ``shape``, kept between calls (fresh large arrays cost page faults each
         step); the next request for ``name`` and the same trailing shape overwrites it."""
         key = (name,) + shape[1:]
@@ -188,9 +188,9 @@ class Monitor:
         """``powers`` of rows (M, nx + 1, T) into scratch buffers, filtered from sample ``skip`` on, outputs from ``cut`` on."""
         M, channels, T = rows.shape
         L = T - skip - cut
-        smooth = self._buffer("smooth", (M, channels, L))
-        slope = self._buffer("slope", (M, len(self._inertia), L))
-        power = self._buffer("power", (M, len(self.elements), L))
+        smooth = self.buffer("smooth", (M, channels, L))
+        slope = self.buffer("slope", (M, len(self._inertia), L))
+        power = self.buffer("power", (M, len(self.elements), L))
         smooth_rows(
             rows, skip, cut, self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1), self._inertia, smooth, slope
         )
@@ -216,11 +216,11 @@ class Monitor:
         if self._context is None:
             self._context = np.full((2 * n, nx + 1, half), np.nan)
         measured, reference, load = (np.ascontiguousarray(x, dtype=float) for x in (measured, reference, load))
-        padded = self._buffer("padded", (2 * n, nx + 1, half + T))
+        padded = self.buffer("padded", (2 * n, nx + 1, half + T))
         padded_chunk(measured, reference, load, self._context, padded)
         power, smooth = self._powers(padded, 0, half)
         finite, ea, residual, gram, cross, noise = chunk_statistics(
-            power, smooth, measured[..., 1:], self.h, self.n_sub, self.n_balance, self._component_index, self._source_index, self._inertia
+            power, smooth, measured[..., 1:], self.h, self.n_sub, self.n_balance, self.component_index, self._source_index, self._inertia
         )
         if not finite:
             raise ValueError("power contains NaN or inf; Energy Activity needs finite signals")
@@ -247,6 +247,6 @@ class Monitor:
             cross=cross,
             noise=np.sqrt(noise[:, 0] / np.maximum(noise[:, 1], TINY)),
             sub_window=self.config.sub_window,
-            component_index=self._component_index,
-            inertia_index=self._inertia_index,
+            component_index=self.component_index,
+            inertia_index=self.inertia_index,
         )

@@ -1,19 +1,15 @@
-"""EA-based estimation of the degrading parameter, and End of Life / RUL by extrapolation (paper 3.3).
+"""The EA inversion of one window: the parameter value that best explains the measured Energy Activity (paper 3.3).
 
-Estimation inverts Energy Activity window by window. For a window [t0, t1], candidate values phi of
-the isolated parameter are simulated from the measured state at t0 - c under the measured load (c is
-the smoothing context), their signals go through the same denoising and nominal laws as the
-measurements, and the candidate whose components' EA and energy balance over [t0, t1] match the
-measured ones best (in relative least squares) is refined on finer grids, then to the vertex of the
-parabola through it and its neighbours (past the grid's end by up to ``EstimatorConfig.reach``
-steps). This uses eq 10's ingredients without linearising them: dS/dphi is the model's own response
-to phi, dEA/dS the component's constitutive law. It is preferred to integrating the rate of eq 15
-(eq 16) because each window's estimate is absolute: errors do not accumulate, and it works for storage
-elements (C, I) as well as for dissipators (R), which the paper names as its limitation.
-
-The End of Life is where a polynomial fitted to the recent estimates (degree 1 by default) reaches a
-safe limit; the interval comes from the fit's covariance (the times where the confidence band of the
-trend reaches the limit).
+For a window [t0, t1], candidate values phi of a parameter are simulated from the measured state at
+t0 - c under the measured load (c is the smoothing context), their signals go through the same
+denoising and nominal laws as the measurements, and the candidate whose components' EA and energy
+balance over [t0, t1] match the measured ones best (in relative least squares) is refined on finer
+grids, then to the vertex of the parabola through it and its neighbours (past the grid's end by up
+to ``EstimatorConfig.reach`` steps). This uses eq 10's ingredients without linearising them: dS/dphi
+is the model's own response to phi, dEA/dS the component's constitutive law. It is preferred to
+integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors do not
+accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the paper
+names as its limitation.
 """
 
 from __future__ import annotations
@@ -23,7 +19,6 @@ from dataclasses import dataclass
 
 import numba
 import numpy as np
-from scipy.stats import norm
 
 from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.monitor import Monitor
@@ -33,7 +28,7 @@ from ea_gym.numerics import TINY
 
 @numba.njit(cache=True)
 def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, h: float) -> tuple[bool, np.ndarray]:
-    """``EAParameterEstimator.signature`` of every row of power (M, E, T) in W, sampled every h seconds:
+    """``EAInversion.signature`` of every row of power (M, E, T) in W, sampled every h seconds:
     whether the components' powers are all finite, and (M, C + 1) in J."""
     M, _, T = power.shape
     C = len(components)
@@ -114,8 +109,8 @@ class EstimatorConfig:
             raise ValueError(f"estimator.reach must be a finite number of grid steps >= 0, got {self.reach!r}")
 
 
-class EAParameterEstimator:
-    """Estimates one parameter per system from the EA of the components over a window.
+class EAInversion:
+    """Estimates one parameter per system from the EA of the components over one window.
 
     Args:
         monitor: the monitor whose denoising and nominal laws produced the measured EA.
@@ -159,12 +154,15 @@ class EAParameterEstimator:
         return np.maximum(np.concatenate([ea, balance], axis=-1), TINY)
 
     def candidate_grid(self, parameter: str) -> np.ndarray:
+        """The first grid of ``parameter``'s candidates: its safe range widened by ``margin`` on both sides."""
         lower, upper = self.model.safe_limits[parameter]
         span = upper - lower
         low = max(lower - self.config.margin * span, 1e-6 * upper)
         return np.linspace(low, upper + self.config.margin * span, self.config.grid)
 
-    def _candidate_signature(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray) -> np.ndarray:
+    def candidate_signature(
+        self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray
+    ) -> np.ndarray:
         """``signature`` over the window for each (system, candidate): (N, G, C + 1)."""
         n, g = values.shape
         space = self.model.state_space
@@ -175,16 +173,18 @@ class EAParameterEstimator:
         x0 = np.repeat(start, g, 0) / to_signal
         uu = np.repeat(u, g, 0)[..., None]
         # the measured signals, then the load: (n g, nx + 1, T)
-        signals = self.monitor._buffer("candidates", (n * g, space.n_states + 1, u.shape[1]))
+        signals = self.monitor.buffer("candidates", (n * g, space.n_states + 1, u.shape[1]))
         simulate_measured(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0, to_signal, out=signals[:, :-1])
         signals[:, -1] = uu[..., 0]
         power, _ = self.monitor.powers(signals, self.context, scratch=True)
         return self.signature(power).reshape(n, g, -1)
 
-    def fit_cost(self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    def fit_cost(
+        self, parameter_index: np.ndarray, values: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, measured: np.ndarray
+    ) -> np.ndarray:
         """Fit cost (N,) of the model with ``values`` (N,) of the parameters ``parameter_index`` (the
         others nominal); arguments as in ``estimate``. With nominal values: the cost of "no fault"."""
-        return self.cost(self._candidate_signature(parameter_index, values[:, None], start, u, du), measured)[:, 0]
+        return self.cost(self.candidate_signature(parameter_index, values[:, None], start, u, du), measured)[:, 0]
 
     def cost(self, signature: np.ndarray, measured: np.ndarray) -> np.ndarray:
         """Fit cost of candidate signatures (N, G, C + 1) against the measured ones (N, C + 1), (N, G): the
@@ -230,7 +230,10 @@ class EAParameterEstimator:
                 )
         return estimate, fit
 
-    def _search(self, parameter_index, grids, start, u, du, measured, passes: int) -> tuple[np.ndarray, np.ndarray]:
+    def _search(
+        self, parameter_index: np.ndarray, grids: np.ndarray, start: np.ndarray, u: np.ndarray, du: np.ndarray, measured: np.ndarray,
+        passes: int,
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Grid search refined ``passes`` times; each pass narrows to one step either side of the best.
 
         Returns the vertex of the parabola through the last pass's best candidate and its neighbours
@@ -241,7 +244,7 @@ class EAParameterEstimator:
         size = grids.shape[1]
         for _ in range(passes):
             searched = grids
-            cost = self.cost(self._candidate_signature(parameter_index, grids, start, u, du), measured)
+            cost = self.cost(self.candidate_signature(parameter_index, grids, start, u, du), measured)
             step = grids[:, 1] - grids[:, 0]
             best = np.argmin(cost, axis=1)
             grids = np.maximum(grids[rows, best][:, None] + np.linspace(-1.0, 1.0, size) * step[:, None], 1e-6 * grids[:, -1:])
@@ -254,111 +257,3 @@ class EAParameterEstimator:
         shift = np.clip(0.5 * (left - right) / np.where(convex, curvature, 1.0), -farthest, farthest)
         estimate = np.where(convex, searched[rows, middle] + shift * step, searched[rows, best])
         return np.maximum(estimate, 1e-6 * grids[:, -1]), cost[rows, best]
-
-
-@dataclass(frozen=True)
-class EndOfLife:
-    """One End-of-Life prediction.
-
-    Attributes:
-        t: prediction time (s).
-        eol: predicted End of Life (s); inf when the trend never reaches a limit.
-        eol_low, eol_high: its interval (s).
-        limit: "lower", "upper" or None.
-    """
-
-    t: float
-    eol: float
-    eol_low: float
-    eol_high: float
-    limit: str | None
-
-    @property
-    def rul(self) -> float:
-        """Remaining useful life (s, eq 2)."""
-        return self.eol - self.t
-
-
-@dataclass(frozen=True)
-class ExtrapolationConfig:
-    """Settings of the trend extrapolation.
-
-    Attributes:
-        degree: polynomial degree (the paper uses 1).
-        span: the fit uses the estimates of the last ``span`` seconds.
-        min_points: fewer estimates than this give no prediction.
-        confidence: two-sided confidence of the interval (normal quantile of the trend's uncertainty).
-        horizon: predictions further than this ahead are reported as inf (s).
-        correlated: how many consecutive estimates share data (overlapping windows, a running median):
-            their errors are correlated, the fit has that many times fewer independent points, and its
-            covariance is scaled up by as much.
-    """
-
-    degree: int = 1
-    span: float = 30.0
-    min_points: int = 5
-    confidence: float = 0.95
-    horizon: float = 2000.0
-    correlated: int = 1
-
-
-def _first_crossing(times: np.ndarray, curve: np.ndarray, level: float, below: bool) -> float:
-    """First time at which ``curve`` reaches ``level`` from its side, linearly interpolated; inf if never."""
-    beyond = curve <= level if below else curve >= level
-    hits = np.flatnonzero(beyond)
-    if len(hits) == 0:
-        return math.inf
-    i = hits[0]
-    if i == 0:
-        return float(times[0])
-    t0, t1, c0, c1 = times[i - 1], times[i], curve[i - 1], curve[i]
-    return float(t0 + (level - c0) * (t1 - t0) / (c1 - c0))
-
-
-def predict_end_of_life(
-    times: np.ndarray,
-    estimates: np.ndarray,
-    limits: tuple[float, float],
-    t_now: float,
-    config: ExtrapolationConfig = ExtrapolationConfig(),
-) -> EndOfLife | None:
-    """Extrapolate the trend of ``estimates`` (parameter unit) at ``times`` (s) to the safe ``limits``.
-
-    Returns None when fewer than ``config.min_points`` estimates fall in the fit span.
-    """
-    recent = times >= t_now - config.span
-    t, y = times[recent], estimates[recent]
-    if len(t) < max(config.min_points, config.degree + 2):
-        return None
-    lower, upper = limits
-    if y[-1] <= lower or y[-1] >= upper:
-        return EndOfLife(t_now, t_now, t_now, t_now, "lower" if y[-1] <= lower else "upper")
-    coefficients, covariance = np.polyfit(t - t_now, y, config.degree, cov="unscaled")
-    residual = y - np.polyval(coefficients, t - t_now)
-    dof = max(len(t) - config.degree - 1, 1)
-    covariance = covariance * max(float(residual @ residual) / dof, TINY) * config.correlated
-    z = norm.ppf(0.5 + config.confidence / 2)
-    slope = np.polyval(np.polyder(coefficients), 0.0)
-    limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)
-
-    def crossing(side: float) -> float:
-        """First time ahead (s) at which the trend + side x its band reaches the limit; inf if never."""
-        def curve(ahead: np.ndarray) -> np.ndarray:
-            powers = np.vander(ahead, config.degree + 1)
-            return powers @ coefficients + side * z * np.sqrt(np.einsum("ti,ij,tj->t", powers, covariance, powers))
-
-        # a coarse grid over the horizon, then a fine one over the interval where the curve first gets there
-        coarse = np.linspace(0.0, config.horizon, 201)
-        first = _first_crossing(coarse, curve(coarse), level, below)
-        if math.isinf(first) or first == 0.0:
-            return first
-        i = int(np.searchsorted(coarse, first))
-        fine = np.linspace(coarse[i - 1], coarse[i], 41)
-        return _first_crossing(fine, curve(fine), level, below)
-
-    eol = crossing(0.0)
-    earliest, latest = crossing(-1.0 if below else 1.0), crossing(1.0 if below else -1.0)
-    if math.isinf(eol):
-        limit = None
-    return EndOfLife(t_now, t_now + eol, t_now + earliest, t_now + latest, limit)
-

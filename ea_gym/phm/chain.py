@@ -1,0 +1,192 @@
+"""The PHM chain on Energy Activity, online and batched over N systems (paper section 3, Fig 5).
+
+Each ``update`` takes one step of signals (measured, reference, load) for every system and passes it
+through the stages: the monitor (EA, EAI and residuals of every element), detection (the alarm),
+the isolation network, the parameter estimator (every degradable parameter, each as if it alone were
+faulty), the fusion of their evidence (the suspect and the chain's belief) and the prognosis (the
+suspect's End of Life and RUL with an interval). It returns a :class:`HealthStatus`, the typed record
+of the step that reporting reads. Each stage keeps its own per-system state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.database import classes_of
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.energy import activity_index, window_samples
+from ea_gym.models import SystemModel
+from ea_gym.phm.config import PHMConfig
+from ea_gym.phm.detection import Detector
+from ea_gym.phm.estimation import ParameterEstimates, StepSignals, inversion_timing, make_estimator
+from ea_gym.phm.history import MonitorHistory
+from ea_gym.phm.isolation import Isolation
+from ea_gym.phm.prognosis import EndOfLife, Prognostics
+
+
+@dataclass(frozen=True)
+class HealthStatus:
+    """The chain's output after one update, one row per system.
+
+    Attributes:
+        t: time since the last reset at the end of the step (s), (N,).
+        ea, ea_reference, residual: EA of every element over the step and its residual (J), (N, E).
+        sub_residual: the EA residual of every element per sub-window of the step (J), (N, E, S).
+        eai, eai_reference: EAI of every component over the step, (N, C).
+        statistic: relative EA residual of every element over the detection window, (N, E).
+        alarm: a fault has been detected, (N,); detection_time: when (s), NaN before.
+        probabilities: the newest frame's isolation class probabilities, (N, K) ("none" = 1 before an
+            alarm and until a full frame).
+        counted: whether the newest frame entered the network's running average (alarm raised and a
+            full frame seen), (N,).
+        diagnosis: the chain's belief ("none" = 1 before the alarm), (N, K): the network's running
+            average since the alarm weighed by the estimator's and the energy balance's evidence.
+        isolated: class index of the isolated parameter, 0 while none, (N,).
+        confidence: the suspect's share of the fault classes' belief, 0 while none, (N,); confident:
+            at or above ``PHMConfig.isolation_confidence`` (only then is an End of Life predicted).
+        estimates: estimate of every degradable parameter, (N, D), each as if it alone were faulty.
+        estimation: the estimator's whole output (variances, evidence, which it updated, the times its
+            values describe).
+        estimate: the isolated parameter's filtered estimate, NaN while none, (N,); it describes the
+            parameter ``PHMChain.estimate_lag`` seconds before ``t``.
+        eol, eol_low, eol_high: End of Life and interval (s), inf while no trend reaches a limit, (N,).
+        end_of_life: each system's prediction with the trend fit behind it, None where none was made.
+    """
+
+    t: np.ndarray
+    ea: np.ndarray
+    ea_reference: np.ndarray
+    residual: np.ndarray
+    sub_residual: np.ndarray
+    eai: np.ndarray
+    eai_reference: np.ndarray
+    statistic: np.ndarray
+    alarm: np.ndarray
+    detection_time: np.ndarray
+    probabilities: np.ndarray
+    counted: np.ndarray
+    diagnosis: np.ndarray
+    isolated: np.ndarray
+    confidence: np.ndarray
+    confident: np.ndarray
+    estimates: np.ndarray
+    estimation: ParameterEstimates
+    estimate: np.ndarray
+    eol: np.ndarray
+    eol_low: np.ndarray
+    eol_high: np.ndarray
+    end_of_life: tuple[EndOfLife | None, ...]
+
+    @property
+    def rul(self) -> np.ndarray:
+        """Point RUL and its interval (s), (N, 3); inf where no End of Life is predicted."""
+        return np.stack([self.eol, self.eol_low, self.eol_high], axis=1) - self.t[:, None]
+
+
+class PHMChain:
+    """The online chain for N systems of one model.
+
+    Args:
+        model: the monitored system (nominal values, safe limits).
+        classifier: the isolation network (its classes are "none" then the degradable parameters).
+        thresholds: detection threshold of every element's relative EA residual and of the energy balance's, (E + 1,).
+        config: chain settings.
+        n_systems: N.
+    """
+
+    def __init__(self, model: SystemModel, classifier: FaultClassifier, thresholds: np.ndarray, config: PHMConfig, n_systems: int = 1):
+        self.model = model
+        self.config = config
+        self.n = n_systems
+        self.h = 1.0 / config.sample_rate
+        self.classifier = classifier
+        self.classes = classes_of(model)
+        if tuple(classifier.classes) != self.classes:
+            raise ValueError(f"classifier classes {classifier.classes} do not match the model's {self.classes}")
+        self.degradable = self.classes[1:]
+        self.monitor = Monitor(model, self.h, config.monitor, n_systems)
+        self.step_samples = window_samples(config.step, self.h)
+        self.step_time = config.update_time
+        self.detector = Detector(thresholds, config.detector, self.monitor, config.step, n_systems)
+        self.thresholds = self.detector.thresholds
+        self.isolation = Isolation(classifier, self.monitor, config, self.classes, n_systems)
+        self.frame_steps = self.isolation.frame_steps
+        self.estimator = make_estimator(config.estimator_kind, model, self.monitor, config, n_systems)
+        if tuple(self.estimator.degradable) != self.degradable:
+            raise ValueError(f"the estimator's parameters {self.estimator.degradable} are not the classifier's {self.degradable}")
+        timing = inversion_timing(config)
+        self.estimate_steps, self.estimate_lag = timing.steps, timing.lag
+        self.history_length = int(round(config.extrapolation.span / self.step_time)) + 1
+        # successive estimates share their windows' data and the median's: so many are not independent
+        self.extrapolation = replace(config.extrapolation, correlated=timing.correlated)
+        self.prognosis = Prognostics(model, self.degradable, self.extrapolation, self.history_length, n_systems)
+        self._dissipators = self.monitor.component_index[self.monitor.dissipators]  # element indices
+        self.history = MonitorHistory.new(
+            n_systems, len(self.monitor.elements), len(self.monitor.components), len(model.state_names),
+            subs=self.frame_steps * (self.step_samples // self.monitor.n_sub), frame_steps=self.frame_steps,
+            regression_steps=max(self.frame_steps, self.isolation.evidence_steps), balance_steps=self.detector.balance_steps,
+            evidence_steps=self.isolation.evidence_steps,
+        )
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems, or for those where the boolean mask (N,) is true."""
+        self.history.reset(systems)
+        self.detector.state.reset(systems)
+        self.isolation.state.reset(systems)
+        self.estimator.reset(systems)
+        self.prognosis.state.reset(systems)
+        self.monitor.reset(systems)
+
+    def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
+        """Log maintenance that moved degradable parameter ``parameters[k]`` (index into ``degradable``) of
+        system ``systems[k]`` (distinct systems) by ``changes[k]`` (its SI unit) before the next update.
+
+        The estimates so far are shifted by the change, as if it had always been there: the trend the
+        prognosis extrapolates stays the wear's, now from the adjusted value, instead of reading the
+        correction as a reversal of the wear.
+        """
+        self.estimator.record_adjustment(systems, parameters, changes)
+        self.prognosis.record_adjustment(systems, parameters, changes)
+
+    def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> HealthStatus:
+        """Process one step.
+
+        Args:
+            measured: noisy measured signals (flows of I, displacements of C), (N, nx, L + 1).
+            reference: the reference model's signals, same shape.
+            load, load_rate: the source's value and time derivative, (N, L + 1).
+        """
+        window = self.monitor.update(measured, reference, load)
+        history = self.history
+        history.record(window, self.step_time, self._dissipators)
+        statistic = self.detector.update(history)
+        alarm = self.detector.state.alarm
+        probabilities = self.isolation.classify(history, alarm)
+        suspects = self.isolation.suspects(len(self.degradable))
+        estimates = self.estimator.update(StepSignals(measured=measured, load=load, load_rate=load_rate, t=history.time), alarm, suspects)
+        fusion = self.isolation.fuse(alarm, estimates.log_evidence, estimates.estimated, self.isolation.balance_evidence(history, alarm))
+        self.estimator.restart(fusion.restarted, fusion.isolated[fusion.restarted] - 1)
+        prognosis = self.prognosis.update(estimates, fusion.isolated, fusion.confident, history.time)
+        ea, ea_ref = window.ea.sum(-1), window.ea_reference.sum(-1)
+        return HealthStatus(
+            t=history.time.copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, sub_residual=window.ea - window.ea_reference,
+            eai=self._activity_index(ea), eai_reference=self._activity_index(ea_ref), statistic=statistic, alarm=alarm.copy(),
+            detection_time=self.detector.state.detection_time.copy(), probabilities=probabilities,
+            counted=self.isolation.counted(history, alarm), diagnosis=fusion.belief, isolated=fusion.isolated,
+            confidence=fusion.confidence, confident=fusion.confident, estimates=estimates.value, estimation=estimates,
+            estimate=prognosis.estimate, eol=prognosis.eol, eol_low=prognosis.eol_low, eol_high=prognosis.eol_high,
+            end_of_life=prognosis.end_of_life,
+        )
+
+    def _activity_index(self, ea: np.ndarray) -> np.ndarray:
+        """EAI of every component from every element's EA over the step, (N, C)."""
+        components = self.monitor.component_index
+        return np.stack(list(activity_index(dict(enumerate(ea[:, components].T))).values()), axis=1)
+
+    @property
+    def statistic_names(self) -> tuple[str, ...]:
+        """What the columns of ``HealthStatus.statistic`` (and the thresholds) watch."""
+        return (*self.monitor.elements, "energy balance")

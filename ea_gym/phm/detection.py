@@ -1,0 +1,181 @@
+"""Detection: relative EA residuals against thresholds calibrated on fault-free runs, with persistence.
+
+Detection compares, element by element, the EA residual summed over the last ``DetectorConfig.window``
+seconds with the reference EA over the same span; the threshold is calibrated on fault-free runs at
+the same noise level (:func:`calibrate_thresholds`), and so does the energy-balance residual relative
+to the dissipators' EA (where a dissipator's fault shows); an alarm needs ``persistence`` steps in a
+row.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
+
+from ea_gym.diagnosis.database import draw_loads
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.energy import window_samples
+from ea_gym.models import SystemModel
+from ea_gym.numerics import TINY
+from ea_gym.phm.history import MonitorHistory, rows_of
+from ea_gym.sensors import add_sensor_noise, measure
+
+if TYPE_CHECKING:
+    from ea_gym.phm.config import PHMConfig
+
+
+@dataclass(frozen=True)
+class DetectorConfig:
+    """Residual detection.
+
+    Attributes:
+        window: span of the EA residual sums compared with the threshold (s).
+        balance_span: span of the energy-balance residual sum (s, a whole number of steps): its noise
+            grows slower than a dissipator's fault, so a longer span sees a smaller fault (at 1 % noise
+            the threshold is about 18 % of the light damper's dissipation over 20 s, 8 % over 60 s),
+            later (the sum describes the middle of its span).
+        persistence: consecutive steps above threshold that raise the alarm.
+        margin: threshold = margin x the largest statistic seen in fault-free calibration runs.
+        floor: smallest threshold (relative EA residual), for noise-free signals.
+        calibration_runs: fault-free runs simulated for the calibration.
+        calibration_duration: their length (s).
+    """
+
+    window: float = 5.0
+    balance_span: float = 60.0
+    persistence: int = 3
+    margin: float = 1.25
+    floor: float = 1e-3
+    calibration_runs: int = 8
+    calibration_duration: float = 180.0
+
+    def __post_init__(self) -> None:
+        if self.calibration_duration < max(self.window, self.balance_span):
+            raise ValueError(
+                f"detector.calibration_duration ({self.calibration_duration} s) must be at least its window "
+                f"({self.window} s) and balance_span ({self.balance_span} s)"
+            )
+
+
+def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, dissipated: np.ndarray) -> np.ndarray:
+    """Detection statistics: (..., E + 1).
+
+    Args:
+        ea, ea_reference: real and reference EA of every element summed over the EA window (J), (..., E).
+        balance: the energy-balance residual, real minus reference, summed over the balance window (J), (...).
+        dissipated: the dissipators' reference EA over the balance window (J), (...): a dissipator's
+            fault leaves that share of its dissipation unaccounted for, while barely changing any
+            element's EA.
+
+    Returns:
+        (ea - ea_reference) / ea_reference per element, then balance / dissipated.
+    """
+    relative = (ea - ea_reference) / np.maximum(ea_reference, TINY)
+    return np.concatenate([relative, (balance / np.maximum(dissipated, TINY))[..., None]], axis=-1)
+
+
+@dataclass
+class DetectionState:
+    """Per system: consecutive steps above threshold (N,), the alarm (N,) and its time (s, NaN before), (N,)."""
+
+    above: np.ndarray
+    alarm: np.ndarray
+    detection_time: np.ndarray
+
+    @classmethod
+    def new(cls, n: int) -> DetectionState:
+        state = cls(above=np.empty(n, dtype=int), alarm=np.empty(n, dtype=bool), detection_time=np.empty(n))
+        state.reset()
+        return state
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems, or for those where the boolean mask (N,) is true."""
+        rows = rows_of(systems)
+        self.above[rows] = 0
+        self.alarm[rows] = False
+        self.detection_time[rows] = np.nan
+
+
+class Detector:
+    """The alarm of N systems from the monitor's history.
+
+    Args:
+        thresholds: threshold of every element's relative EA residual and of the energy balance's, (E + 1,).
+        config: detection settings.
+        monitor: the monitor whose outputs the history holds.
+        step: seconds of signal per update.
+        n_systems: N.
+    """
+
+    def __init__(self, thresholds: np.ndarray, config: DetectorConfig, monitor: Monitor, step: float, n_systems: int):
+        self.thresholds = np.asarray(thresholds, dtype=float)
+        self.config = config
+        self.step_samples = window_samples(step, monitor.h)
+        self.window_subs = window_samples(config.window, monitor.config.sub_window)
+        self.balance_steps = window_samples(config.balance_span, step)
+        # samples each statistic needs before it means anything: its whole span
+        self.span_samples = np.append(np.full(len(monitor.elements), self.window_subs * monitor.n_sub), self.balance_steps * self.step_samples)
+        self.state = DetectionState.new(n_systems)
+
+    def statistic(self, history: MonitorHistory) -> np.ndarray:
+        """Relative EA residual of every element and relative energy-balance residual over the detection window, (N, E + 1)."""
+        statistic = relative_residuals(
+            history.ea[..., -self.window_subs :].sum(-1), history.ea_reference[..., -self.window_subs :].sum(-1),
+            history.balance.sum(-1), history.dissipated.sum(-1),
+        )
+        return np.where((history.steps * self.step_samples)[:, None] >= self.span_samples, statistic, 0.0)
+
+    def update(self, history: MonitorHistory) -> np.ndarray:
+        """The statistic (N, E + 1) after the newest step; raises the alarm of systems above threshold long enough."""
+        s = self.state
+        statistic = self.statistic(history)
+        above = np.any(np.abs(statistic) > self.thresholds, axis=1)
+        s.above[:] = np.where(above, s.above + 1, 0)
+        new_alarm = ~s.alarm & (s.above >= self.config.persistence)
+        s.detection_time[:] = np.where(new_alarm, history.time, s.detection_time)
+        s.alarm |= new_alarm
+        return statistic
+
+
+def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> np.ndarray:
+    """Detection thresholds from fault-free runs under random loads at ``config.noise``, (E + 1,)."""
+    from ea_gym.bondgraph.simulation import simulate_batch
+
+    d = config.detector
+    h = 1.0 / config.sample_rate
+    runs = d.calibration_runs
+    loads = draw_loads(model, runs, rng)
+    t = np.arange(int(round(d.calibration_duration * config.sample_rate)) + 1) * h
+    u = np.stack([load.value(t) for load in loads])
+    du = np.stack([load.derivative(t) for load in loads])
+    nominal = np.repeat(model.parameter_vector()[None], runs, 0)
+    states = simulate_batch(model.state_space, h, u[..., None], du[..., None], nominal, np.zeros((runs, len(model.state_names))))
+    monitor = Monitor(model, h, config.monitor, runs)
+    clean = measure(monitor, nominal, states, 0.0, rng)
+    step = window_samples(config.step, h)
+    subs = window_samples(config.detector.window, config.monitor.sub_window)
+    windows = []
+    for start in range(0, len(t) - 1, step):
+        part = slice(start, start + step + 1)
+        noisy = add_sensor_noise(clean[..., part], config.noise, rng)
+        windows.append(monitor.update(noisy, clean[..., part], u[:, part]))
+    # the balance windows are whole sub-windows: spread each over its sub-windows to align the sums
+    per_sub = window_samples(config.monitor.balance_window, config.monitor.sub_window)
+    balance = np.concatenate([w.balance for w in windows], -1).repeat(per_sub, -1) / per_sub
+    ea, ref = np.concatenate([w.ea for w in windows], -1), np.concatenate([w.ea_reference for w in windows], -1)
+    balance_subs = window_samples(d.balance_span, config.monitor.sub_window)
+
+    def sums(x: np.ndarray, span: int) -> np.ndarray:  # every window of ``span`` sub-windows, first axis
+        return np.moveaxis(sliding_window_view(x, span, axis=-1).sum(-1), -1, 0)
+
+    # each statistic's threshold is its own maximum: the EA and balance windows need not be aligned
+    dissipated = ref[:, monitor.component_index[monitor.dissipators]].sum(1)
+    ea_statistic = relative_residuals(sums(ea, subs), sums(ref, subs), sums(balance, subs), sums(dissipated, subs))
+    balance_statistic = relative_residuals(
+        sums(ea, balance_subs), sums(ref, balance_subs), sums(balance, balance_subs), sums(dissipated, balance_subs)
+    )
+    largest = np.append(np.abs(ea_statistic[..., :-1]).max(axis=(0, 1)), np.abs(balance_statistic[..., -1]).max())
+    return np.maximum(d.margin * largest, d.floor)

@@ -1,0 +1,203 @@
+"""Isolation: the network's running belief, the energy-balance evidence and their fusion with the estimator's.
+
+Isolation weighs three kinds of evidence. The network's probabilities are averaged (exponentially)
+over the frames seen since the alarm; the estimator says how well each hypothesis "parameter j alone
+has changed" (and "none") explains the measurements (its log evidence: for the EA inversion, minus
+the running average of its log fit cost); and the energy balance of the last few seconds, regressed
+on the energies the components absorb, says how much worse it is explained with component j's
+column alone (:func:`balance_chi_square`). The belief in class j is the network's share of it (plus a
+floor) times exp(ll_j - ll_max) times exp(-(chi2_j - chi2_min) / 2), deflated: a network that cannot
+yet tell a small fault apart does not outvote a hypothesis that the EA fits a hundred times better,
+and a young storage fault (which the balance pins to a tenth of a per cent) is not taken for the
+light damper, whose EA fit it can mimic.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.features import frame_features
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.energy import window_samples
+from ea_gym.numerics import TINY
+from ea_gym.phm.history import MonitorHistory, rows_of
+
+if TYPE_CHECKING:
+    from ea_gym.phm.config import PHMConfig
+
+
+def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, windows: np.ndarray, columns: np.ndarray) -> np.ndarray:
+    """How much worse the energy balance is explained under each isolation class, (N, 1 + D).
+
+    The balance residual R of every balance window (real minus reference, J) is regressed on the
+    energies the components absorb in it: a fault of component i with relative coefficient change
+    beta_i adds beta_i E_i. "None" keeps no column, "degradable parameter j alone has changed" its
+    component's column alone. The chi-square of a class is the rise of the residual sum of squares
+    over the full regression's, in units of the full regression's residual variance.
+
+    Args:
+        gram: sum over the windows of E_i E_j, (N, C, C) in J^2.
+        cross: sum of E_i R, (N, C) in J^2.
+        square: sum of R^2, (N,) in J^2.
+        windows: number of windows summed, (N,).
+        columns: each degradable parameter's component column, -1 for one that is no component's: such
+            a hypothesis cannot be judged by the balance and gets the smallest chi-square (no evidence).
+    """
+    C = gram.shape[-1]
+    # a pseudo-inverse: a component the span barely excites drops out instead of taking a ridge's bias
+    explained = np.einsum("ni,nij,nj->n", cross, np.linalg.pinv(gram, rcond=1e-12, hermitian=True), cross)
+    variance = np.maximum(square - explained, TINY) / np.maximum(windows - C, 1)
+    diagonal = np.diagonal(gram, axis1=-2, axis2=-1)
+    single = cross**2 / np.maximum(diagonal, TINY)  # explained by one column alone
+    chi2 = np.empty((len(square), 1 + len(columns)))
+    chi2[:, 0] = explained
+    chi2[:, 1:] = explained[:, None] - np.where(columns >= 0, single[:, columns], explained[:, None])
+    chi2 = np.maximum(chi2, 0.0) / variance[:, None]
+    chi2[:, 1:] = np.where(columns >= 0, chi2[:, 1:], chi2.min(1, keepdims=True))
+    return chi2
+
+
+@dataclass
+class IsolationState:
+    """Per system: the network's running average since the alarm (N, K), the suspect's class index (0 while
+    none) (N,) and whether the isolation is confident of it (N,)."""
+
+    probability_average: np.ndarray
+    isolated: np.ndarray
+    confident: np.ndarray
+
+    @classmethod
+    def new(cls, n: int, classes: int) -> IsolationState:
+        state = cls(probability_average=np.empty((n, classes)), isolated=np.empty(n, dtype=int), confident=np.empty(n, dtype=bool))
+        state.reset()
+        return state
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems, or for those where the boolean mask (N,) is true."""
+        rows = rows_of(systems)
+        self.probability_average[rows] = 0.0
+        self.isolated[rows] = 0
+        self.confident[rows] = False
+
+
+@dataclass(frozen=True)
+class Fusion:
+    """One step's isolation verdict, N systems.
+
+    Attributes:
+        belief: the fused class probabilities ("none" = 1 before the alarm), (N, K).
+        isolated: class index of the suspect, 0 while none, (N,).
+        confidence: the suspect's share of the fault classes' belief, 0 while none, (N,).
+        confident: confidence at or above ``PHMConfig.isolation_confidence``, (N,).
+        restarted: the systems whose new suspect was not estimated at this step (its estimates are stale), (M,).
+    """
+
+    belief: np.ndarray
+    isolated: np.ndarray
+    confidence: np.ndarray
+    confident: np.ndarray
+    restarted: np.ndarray
+
+
+class Isolation:
+    """The isolation stage of N systems: network, balance evidence, fusion.
+
+    Args:
+        classifier: the isolation network (its classes are "none" then the degradable parameters).
+        monitor: the monitor whose outputs the history holds.
+        config: the chain's settings.
+        classes: "none" then the degradable parameters.
+        n_systems: N.
+    """
+
+    def __init__(self, classifier: FaultClassifier, monitor: Monitor, config: PHMConfig, classes: tuple[str, ...], n_systems: int):
+        self.classifier = classifier
+        self.monitor = monitor
+        self.config = config
+        self.classes = classes
+        self.n = n_systems
+        self.frame_steps = window_samples(config.frame, config.step)
+        self.evidence_steps = window_samples(config.balance_evidence_span, config.step)
+        step_samples = window_samples(config.step, monitor.h)
+        self.balance_windows_per_step = step_samples // (monitor.n_sub * monitor.n_balance)
+        # each degradable parameter's column in the balance regression (-1: not a component's)
+        self.balance_column = np.array([monitor.components.index(p) if p in monitor.components else -1 for p in classes[1:]])
+        self.state = IsolationState.new(n_systems, len(classes))
+
+    def suspects(self, parameters: int) -> np.ndarray:
+        """The hypotheses to estimate at the next step, (N, D): every one until the isolation is confident of
+        a suspect (so that a change of suspect finds a history), then the suspect alone."""
+        s = self.state
+        return np.where(s.confident[:, None], np.arange(parameters) == s.isolated[:, None] - 1, True)
+
+    def counted(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
+        """The systems whose newest frame enters the network's average, (N,): alarm raised and a full frame seen."""
+        return (history.steps >= self.frame_steps) & alarm
+
+    def classify(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
+        """The newest frame's network class probabilities (N, K); updates their running average."""
+        s = self.state
+        probabilities = np.zeros((self.n, len(self.classes)))
+        probabilities[:, 0] = 1.0
+        # isolation only matters once a fault is detected, and needs a full frame
+        counted = self.counted(history, alarm)
+        if np.any(counted):
+            noise = history.noise[counted].sum(-1)
+            frame = self.monitor.frame_of(
+                history.ea[counted], history.ea_reference[counted],
+                history.gram[counted, ..., -self.frame_steps :].sum(-1), history.cross[counted, ..., -self.frame_steps :].sum(-1), noise,
+            )
+            features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth)
+            probabilities[counted] = self.classifier.predict_proba(features)
+        # an exponential average over the frames since the alarm: later frames, with the fault grown,
+        # outweigh the first ambiguous ones
+        weight = self.config.isolation_smoothing
+        s.probability_average[counted] += weight * (probabilities[counted] - s.probability_average[counted])
+        return probabilities
+
+    def balance_evidence(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
+        """Likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
+        evidence = np.ones((self.n, len(self.classes)))
+        rows = np.flatnonzero(alarm)
+        if len(rows) == 0:
+            return evidence
+        span = self.evidence_steps
+        chi2 = balance_chi_square(
+            history.gram[rows, ..., -span:].sum(-1), history.cross[rows, ..., -span:].sum(-1), history.balance_square[rows].sum(-1),
+            np.minimum(history.steps[rows], span) * self.balance_windows_per_step, self.balance_column,
+        )
+        # the residual's noise is correlated across windows (the smoothing filter spans several), so
+        # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
+        evidence[rows] = np.exp(-0.5 * (chi2 - chi2.min(1, keepdims=True)) / self.config.balance_inflation)
+        return evidence
+
+    def fuse(self, alarm: np.ndarray, log_evidence: np.ndarray, estimated: np.ndarray, balance: np.ndarray) -> Fusion:
+        """The belief (N, K) from the network's average, the estimator's log evidence (N, K) and the balance
+        evidence (N, K); sets the suspect. ``estimated`` (N, D): the hypotheses the estimator updated at this step."""
+        s = self.state
+        K = len(self.classes)
+        total = s.probability_average.sum(1, keepdims=True)
+        # before the network's first frame its belief is uniform: the fits alone decide
+        network = np.where(total > 0, s.probability_average / np.where(total > 0, total, 1.0), 1.0 / K)
+        best = np.max(log_evidence, axis=1, initial=-np.inf, where=np.isfinite(log_evidence))
+        evidence = np.exp(log_evidence - best[:, None])
+        evidence = np.where(np.isfinite(evidence), evidence, 1.0)  # a hypothesis not yet fitted: no evidence either way
+        belief = (network + self.config.network_floor) * evidence * balance
+        believed = alarm & (np.any(np.isfinite(log_evidence[:, 1:]), axis=1) | (total[:, 0] > 0))
+        diagnosis = np.where(believed[:, None], belief / belief.sum(1, keepdims=True), np.eye(K)[0])
+        isolated = np.where(believed, 1 + np.argmax(diagnosis[:, 1:], axis=1), 0)
+        # a new suspect not estimated at this step has stale estimates: the estimator starts it afresh
+        changed = np.flatnonzero((isolated != s.isolated) & (isolated > 0))
+        changed = changed[~estimated[changed, isolated[changed] - 1]]
+        s.isolated[:] = isolated
+        # the alarm already says there is a fault: confidence is the suspect's share among the fault classes
+        share = diagnosis[np.arange(self.n), isolated] / np.maximum(diagnosis[:, 1:].sum(1), TINY)
+        s.confident[:] = (isolated > 0) & (share >= self.config.isolation_confidence)
+        return Fusion(
+            belief=diagnosis, isolated=isolated, confidence=np.where(isolated > 0, share, 0.0), confident=s.confident.copy(),
+            restarted=changed,
+        )
