@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from ea_gym._kernels.activity import trapezoid_activity
 from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
@@ -39,12 +40,9 @@ def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, 
     for m in range(M):
         for c in range(C):
             p = power[m, components[c]]
-            finite &= np.isfinite(p[0])
-            activity = 0.0
-            for t in range(T - 1):
-                finite &= np.isfinite(p[t + 1])
-                activity += 0.5 * (abs(p[t]) + abs(p[t + 1])) * h
-            out[m, c] = activity
+            for t in range(T):
+                finite &= np.isfinite(p[t])
+            out[m, c] = trapezoid_activity(p, 0, T - 1, h)
         # trapezoids of the net power, the sources' minus the components'; time innermost to vectorize
         delivered[:] = 0.0
         absorbed[:] = 0.0
