@@ -183,8 +183,8 @@ class PHMChain:
 
     def _activity_index(self, ea: np.ndarray) -> np.ndarray:
         """EAI of every component from every element's EA over the step, (N, C)."""
-        components = self.monitor.component_index
-        return np.stack(list(activity_index(dict(enumerate(ea[:, components].T))).values()), axis=1)
+        components = ea[:, self.monitor.component_index].T
+        return np.stack(list(activity_index(dict(zip(self.monitor.components, components))).values()), axis=1)
 
     @property
     def statistic_names(self) -> tuple[str, ...]:

@@ -31,7 +31,7 @@ def push_window(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
     """
     k, T = new.shape[-1], buffer.shape[-1]
     backing = buffer.base
-    if not _is_window(buffer, backing):
+    if backing is None or not _is_window(buffer, backing):
         backing = np.empty(buffer.shape[:-1] + (2 * T,), dtype=buffer.dtype)
         backing[..., :T] = buffer
         buffer = backing[..., :T]
@@ -45,11 +45,10 @@ def push_window(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
     return window
 
 
-def _is_window(buffer: np.ndarray, backing: np.ndarray | None) -> bool:
+def _is_window(buffer: np.ndarray, backing: np.ndarray) -> bool:
     """Whether ``buffer`` is a window on the last axis of a backing array ``push_window`` made: C-contiguous, twice its length."""
     return (
-        backing is not None
-        and backing.flags.c_contiguous
+        backing.flags.c_contiguous
         and backing.dtype == buffer.dtype
         and backing.shape[:-1] == buffer.shape[:-1]
         and backing.strides == buffer.strides

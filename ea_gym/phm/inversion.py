@@ -213,15 +213,14 @@ class EAInversion:
             hypotheses "parameter j alone has changed" tells which one the EA supports.
         """
         grids = self._grids[parameter_index]
-        warm = np.zeros(len(parameter_index), dtype=bool) if previous is None else np.isfinite(previous)
-        if np.any(warm):
-            spans = self._spans[parameter_index[warm]]
-            offsets = np.linspace(-1.0, 1.0, self.config.warm_grid) * self.config.warm_span
-            warm_grids = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
+        previous = np.full(len(parameter_index), np.nan) if previous is None else previous
+        warm = np.isfinite(previous)
+        spans = self._spans[parameter_index[warm]]
+        offsets = np.linspace(-1.0, 1.0, self.config.warm_grid) * self.config.warm_span
+        warm_grids = np.maximum(previous[warm, None] + offsets * spans[:, None], 1e-6 * grids[warm, -1:])
         # warm and cold systems are searched apart, so that a system's estimate never depends on the batch
         estimate, fit = np.empty(len(parameter_index)), np.empty(len(parameter_index))
-        for rows, start_grids, passes in ((warm, warm_grids if np.any(warm) else None, self.config.warm_passes),
-                                          (~warm, grids[~warm], self.config.passes)):
+        for rows, start_grids, passes in ((warm, warm_grids, self.config.warm_passes), (~warm, grids[~warm], self.config.passes)):
             if np.any(rows):
                 estimate[rows], fit[rows] = self._search(
                     parameter_index[rows], start_grids, start[rows], u[rows], du[rows], measured[rows], passes
