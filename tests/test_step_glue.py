@@ -12,7 +12,7 @@ def _snapshot(observation):
 def test_observations_are_fresh_arrays_and_idle_outputs_stay_unchanged():
     env = BondGraphMaintenanceVectorEnv(num_envs=4, obs_mode="phm", continue_after_failure=True)
     core = env.core
-    idle = {key: value.copy() for key, value in core._idle_outputs().items()}
+    idle = {key: value.copy() for key, value in core.observer.idle.items()}
     observation, _ = env.reset(seed=0)
     kept = [(observation, _snapshot(observation))]
     rng = np.random.default_rng(0)
@@ -26,5 +26,5 @@ def test_observations_are_fresh_arrays_and_idle_outputs_stay_unchanged():
     for observation, snapshot in kept:
         for key in observation:
             np.testing.assert_array_equal(observation[key], snapshot[key])
-    for key, value in core._idle.items():
+    for key, value in core.observer.idle.items():
         np.testing.assert_array_equal(value, idle[key])

@@ -2,20 +2,21 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, SupportsInt
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from ea_gym.degradation import WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
-from ea_gym.env.core import OBS_MODES, EnvConfig, MaintenanceCore
-from ea_gym.env.costs import CostModel
+from ea_gym.env.config import EnvConfig, env_config
+from ea_gym.env.core import MaintenanceCore
 from ea_gym.models import MODELS, SystemModel, get_model
 
+Observation = dict[str, np.ndarray]
 
-class BondGraphMaintenanceEnv(gym.Env):
+
+class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
     """
     ## Description
 
@@ -80,12 +81,15 @@ class BondGraphMaintenanceEnv(gym.Env):
     ## Arguments
 
     ```python
-    gymnasium.make("ea_gym/BondGraphMaintenance-v0", system="spring_mass_damper", obs_mode="phm",
-                   step_seconds=1.0, window_seconds=None, noise=0.01, horizon=500, costs=CostModel(),
-                   wear=None, corrective_rate=0.02, continue_after_failure=False, rul_max=1000.0,
-                   sample_rate=100.0, classifier=None, render_mode=None)
+    gymnasium.make("ea_gym/BondGraphMaintenance-v0", system="spring_mass_damper", config=None,
+                   classifier=None, render_mode=None, **overrides)
     ```
 
+    - `config`: an `EnvConfig` (default `EnvConfig()`); every field can also be given as a keyword
+      override: `obs_mode="phm"`, `step_seconds=1.0`, `window_seconds=None`, `noise=0.01`,
+      `horizon=500`, `costs=CostModel()`, `wear=None`, `corrective_rate=0.02`,
+      `continue_after_failure=False`, `rul_max=1000.0`, `sample_rate=100.0`, `load_std=(0.2, 0.4)`,
+      `phm=None` (the chain's own settings, a `PHMConfig`).
     - `system`: a built-in model name or a `SystemModel` (bond graph with nominal values and safe limits).
     - `step_seconds`: degradation time per step; `window_seconds`: measured operation per step (default
       equal: continuous operation; a larger step is slow wear watched through periodic snapshots).
@@ -104,57 +108,45 @@ class BondGraphMaintenanceEnv(gym.Env):
     def __init__(
         self,
         system: str | SystemModel = "spring_mass_damper",
-        obs_mode: str = "phm",
-        step_seconds: float = 1.0,
-        window_seconds: float | None = None,
-        noise: float = 0.01,
-        horizon: int = 500,
-        costs: CostModel | None = None,
-        wear: dict[str, WearConfig] | None = None,
-        corrective_rate: float = 0.02,
-        continue_after_failure: bool = False,
-        rul_max: float = 1000.0,
-        sample_rate: float = 100.0,
+        config: EnvConfig | None = None,
         classifier: FaultClassifier | str | None = None,
         render_mode: str | None = None,
+        **overrides: Any,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.core = build_core(
-            1, system=system, obs_mode=obs_mode, step_seconds=step_seconds, window_seconds=window_seconds, noise=noise,
-            horizon=horizon, costs=costs, wear=wear, corrective_rate=corrective_rate,
-            continue_after_failure=continue_after_failure, rul_max=rul_max, sample_rate=sample_rate, classifier=classifier,
-        )
+        self.core = build_core(1, system, config, classifier, **overrides)
         self.config = self.core.config
         self.model = self.core.model
         self.render_mode = render_mode
         self.maintainable_components = self.core.components
         self.elements = self.core.elements
         self.diagnosis_classes = self.core.classes
+        self.actions = self.core.actions
         self.action_meanings = self.core.action_meanings
         self.nominal_parameters = self.core.nominal_parameters
         self.safe_limits = self.core.safe_limits
         self.action_space = spaces.Discrete(len(self.action_meanings))
-        self.observation_space = observation_space(self.core)
+        self.observation_space = self.core.observer.space()
         self._history: list[dict[str, Any]] = []
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Observation, dict[str, Any]]:
         super().reset(seed=seed)
         observation = self.core.reset([self.np_random])
         self._history = []
-        return _first(observation), self.core.reset_info(0)
+        return _first(observation), self.core.reset_info().system(0)
 
-    def step(self, action):
+    def step(self, action: SupportsInt) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
         if not self.action_space.contains(action):
             raise ValueError(f"action must be an int in [0, {self.action_space.n - 1}] ({self.action_meanings}), got {action!r}")
         result = self.core.step(np.array([int(action)]), [self.np_random])
         observation = _first(result.observation)
-        info = self.core.info(result, 0)
+        info = result.info.system(0)
         self._history.append({"observation": observation, "info": info, "action": int(action)})
         del self._history[:-120]
         return observation, float(result.reward[0]), bool(result.terminated[0]), bool(result.truncated[0]), info
 
-    def render(self):
+    def render(self) -> str | np.ndarray | None:
         if self.render_mode is None:
             gym.logger.warn("render() called without a render_mode; pass render_mode='rgb_array' or 'ansi' to make()")
             return None
@@ -175,55 +167,24 @@ class SpringMassDamperEnv(BondGraphMaintenanceEnv):
 def build_core(
     n_systems: int,
     system: str | SystemModel = "spring_mass_damper",
-    obs_mode: str = "phm",
-    step_seconds: float = 1.0,
-    window_seconds: float | None = None,
-    noise: float = 0.01,
-    horizon: int = 500,
-    costs: CostModel | None = None,
-    wear: dict[str, WearConfig] | None = None,
-    corrective_rate: float = 0.02,
-    continue_after_failure: bool = False,
-    rul_max: float = 1000.0,
-    sample_rate: float = 100.0,
+    config: EnvConfig | None = None,
     classifier: FaultClassifier | str | None = None,
+    **overrides: Any,
 ) -> MaintenanceCore:
-    """The step core of N environments, from the environments' keyword arguments (checked)."""
+    """The step core of N environments from the environments' arguments: the system (a built-in
+    model's name or a model), ``config`` with keyword ``overrides`` of its fields, and the classifier
+    (or a path to one)."""
     if isinstance(system, str):
         if system not in MODELS:
             raise ValueError(f"system must be one of {sorted(MODELS)} or a SystemModel, got {system!r}")
         system = get_model(system)
     elif not isinstance(system, SystemModel):
         raise TypeError(f"system must be a model name or a SystemModel, got {type(system).__name__}")
-    if obs_mode not in OBS_MODES:
-        raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {obs_mode!r}")
+    settings = env_config(config, **overrides)
     if isinstance(classifier, str):
         classifier = FaultClassifier.load(classifier)
-    config = EnvConfig(
-        step_seconds=step_seconds, window_seconds=window_seconds, sample_rate=sample_rate, noise=noise,
-        horizon=horizon, obs_mode=obs_mode, costs=costs or CostModel(), wear=wear,
-        corrective_rate=corrective_rate, continue_after_failure=continue_after_failure, rul_max=rul_max,
-    )
-    return MaintenanceCore(system, config, n_systems, classifier)
+    return MaintenanceCore(system, settings, n_systems, classifier)
 
 
-def observation_space(core: MaintenanceCore) -> spaces.Dict:
-    """The Dict observation space of one system."""
-    E, C, K, n = len(core.elements), len(core.rco), len(core.classes), len(core.components)
-    config = core.config
-    keys = {
-        "ea": spaces.Box(0.0, 1e6, (E,), np.float32),
-        "eai": spaces.Box(0.0, 1.0, (C,), np.float32),
-        "residual": spaces.Box(-1e6, 1e6, (E,), np.float32),
-        "time_since_maintenance": spaces.Box(0.0, config.horizon * config.step_seconds, (1,), np.float32),
-        "maintenance_in_progress": spaces.Box(0.0, 1.0, (1,), np.float32),
-    }
-    if config.obs_mode != "sensors":
-        keys["diagnosis"] = spaces.Box(0.0, 1.0, (K,), np.float32)
-        keys["parameter_estimate"] = spaces.Box(-1.0, 2.0, (n,), np.float32)
-        keys["rul"] = spaces.Box(0.0, config.rul_max, (3,), np.float32)
-    return spaces.Dict(keys)
-
-
-def _first(batch: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+def _first(batch: Observation) -> Observation:
     return {key: value[0] for key, value in batch.items()}

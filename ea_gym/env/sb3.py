@@ -31,7 +31,7 @@ class MaintenanceVecEnv(VecEnv):
     def reset(self) -> VecEnvObs:
         seeds = None if all(s is None for s in self._seeds) else self._seeds
         observation, _ = self.venv.reset(seed=seeds)
-        self.reset_infos = [self.venv.core.reset_info(i) for i in range(self.num_envs)]
+        self.reset_infos = [self.venv.step_info.system(i) for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
         return observation
@@ -47,15 +47,9 @@ class MaintenanceVecEnv(VecEnv):
             if dones[i]:
                 info = dict(infos["final_info"][i])
                 info["terminal_observation"] = infos["final_obs"][i]
-                self.reset_infos[i] = self.venv.core.reset_info(i)
+                self.reset_infos[i] = self.venv.core.reset_info().system(i)
             else:
-                info = {
-                    "true_parameters": {name: float(values[i]) for name, values in infos["true_parameters"].items()},
-                    "true_rul": float(infos["true_rul"][i]),
-                    "cost": {key: float(values[i]) for key, values in infos["cost"].items()},
-                    "failed": bool(infos["failed"][i]),
-                    "events": infos["events"][i],
-                }
+                info = self.venv.step_info.system(i)
             info["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
             per_env.append(info)
         return observation, rewards.astype(np.float32), dones, per_env

@@ -22,16 +22,20 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from ea_gym.env.core import COST_ITEMS, MaintenanceCore
-from ea_gym.env.maintenance import build_core, observation_space
+from ea_gym.env.core import MaintenanceCore
+from ea_gym.env.infos import StepInfo
+from ea_gym.env.maintenance import Observation, build_core
 
 
-class BondGraphMaintenanceVectorEnv(VectorEnv):
+class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarray]):
     """N maintenance environments in one batch; see ``BondGraphMaintenanceEnv`` for the task.
 
     Args:
         num_envs: N.
-        **kwargs: the single environment's keyword arguments (system, obs_mode, step_seconds, ...).
+        **kwargs: the single environment's keyword arguments (system, config, classifier, and
+            ``EnvConfig`` overrides: obs_mode, step_seconds, ...).
+
+    ``step_info`` holds what the systems reported at the last step or reset (the infos' source).
     """
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.SAME_STEP}
@@ -44,6 +48,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv):
         self.core: MaintenanceCore = build_core(num_envs, **kwargs)
         self.num_envs = num_envs
         self.render_mode = None
+        self.actions = self.core.actions
         self.action_meanings = self.core.action_meanings
         self.diagnosis_classes = self.core.classes
         self.maintainable_components = self.core.components
@@ -52,11 +57,14 @@ class BondGraphMaintenanceVectorEnv(VectorEnv):
         self.safe_limits = self.core.safe_limits
         self.single_action_space = spaces.Discrete(len(self.action_meanings))
         self.action_space = spaces.MultiDiscrete(np.full(num_envs, len(self.action_meanings)))
-        self.single_observation_space = observation_space(self.core)
+        self.single_observation_space = self.core.observer.space()
         self.observation_space = batch_space(self.single_observation_space, num_envs)
         self._generators = [seeding.np_random(None)[0] for _ in range(num_envs)]
+        self.step_info: StepInfo = self.core.reset_info()
 
-    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict | None = None):
+    def reset(
+        self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
+    ) -> tuple[Observation, dict[str, Any]]:
         """Reset every system; ``seed`` is an int (system i gets seed + i), a list of N seeds, or None."""
         if seed is None:
             seeds = [None] * self.num_envs
@@ -68,9 +76,10 @@ class BondGraphMaintenanceVectorEnv(VectorEnv):
                 raise ValueError(f"seed must be an int, None or a list of {self.num_envs} seeds, got {len(seeds)} seeds")
         self._generators = [seeding.np_random(s)[0] for s in seeds]
         observation = self.core.reset(self._generators)
-        return observation, self._reset_infos(np.ones(self.num_envs, dtype=bool))
+        self.step_info = self.core.reset_info()
+        return observation, self.step_info.batched(np.ones(self.num_envs, dtype=bool))
 
-    def step(self, actions):
+    def step(self, actions: np.ndarray) -> tuple[Observation, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         actions = np.asarray(actions)
         n_actions = len(self.action_meanings)
         if (
@@ -80,55 +89,20 @@ class BondGraphMaintenanceVectorEnv(VectorEnv):
         ):
             raise ValueError(f"actions must be {self.num_envs} ints in [0, {n_actions - 1}] ({self.action_meanings}), got {actions!r}")
         result = self.core.step(actions, self._generators)
+        self.step_info = result.info
         done = result.terminated | result.truncated
-        infos = self._step_infos(result)
+        infos = result.info.batched(np.ones(self.num_envs, dtype=bool))
         observation = result.observation
         if np.any(done):
             final_obs = np.empty(self.num_envs, dtype=object)
             final_info = np.empty(self.num_envs, dtype=object)
             for i in np.flatnonzero(done):
                 final_obs[i] = {key: value[i] for key, value in observation.items()}
-                final_info[i] = self.core.info(result, i)
+                final_info[i] = result.info.system(i)
             fresh = self.core.reset(self._generators, done)
             observation = {key: np.where(_rows(done, value), fresh[key], value) for key, value in observation.items()}
             infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
         return observation, result.reward.astype(np.float64), result.terminated, result.truncated, infos
-
-    def _step_infos(self, result) -> dict[str, Any]:
-        everyone = np.ones(self.num_envs, dtype=bool)
-        names = self.core.model.parameter_names
-        events = np.empty(self.num_envs, dtype=object)
-        events[:] = [list(e) for e in result.events]
-        return {
-            "true_parameters": {name: result.true_parameters[:, j] for j, name in enumerate(names)},
-            "_true_parameters": everyone,
-            "true_rul": result.true_rul,
-            "_true_rul": everyone,
-            "cost": dict(result.costs),
-            "_cost": everyone,
-            "failed": result.failed,
-            "_failed": everyone,
-            "events": events,
-            "_events": everyone,
-        }
-
-    def _reset_infos(self, mask: np.ndarray) -> dict[str, Any]:
-        names = self.core.model.parameter_names
-        theta = self.core._state["theta"]
-        events = np.empty(self.num_envs, dtype=object)
-        events[:] = [[] for _ in range(self.num_envs)]
-        return {
-            "true_parameters": {name: theta[:, j].copy() for j, name in enumerate(names)},
-            "_true_parameters": mask,
-            "true_rul": self.core._true_rul(),
-            "_true_rul": mask,
-            "cost": {key: np.zeros(self.num_envs) for key in COST_ITEMS},
-            "_cost": mask,
-            "failed": np.zeros(self.num_envs, dtype=bool),
-            "_failed": mask,
-            "events": events,
-            "_events": mask,
-        }
 
 
 class SpringMassDamperVectorEnv(BondGraphMaintenanceVectorEnv):

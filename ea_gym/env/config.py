@@ -1,0 +1,115 @@
+"""The maintenance environment's settings: one frozen, validated ``EnvConfig`` shaping an episode."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+from ea_gym.degradation import WearConfig
+from ea_gym.env.costs import CostModel
+from ea_gym.phm import PHMConfig
+
+OBS_MODES = ("phm", "sensors", "oracle")
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """Everything that shapes an episode; checked when built (a one-line error naming the field).
+
+    Attributes:
+        step_seconds: degradation time one step covers (s).
+        window_seconds: measured operation per step (s); None: equal to ``step_seconds``.
+        sample_rate: sensor sample rate (Hz).
+        noise: sensor noise, fraction of each measured signal's RMS, in [0, 1).
+        horizon: steps before truncation.
+        obs_mode: "phm", "sensors" or "oracle".
+        costs: the cost model.
+        wear: wearing components and how they wear; None: every parameter with safe limits, linear
+            drift in a random direction.
+        corrective_rate: speed of a corrective action, fraction of the safe range per s (the paper's
+            corrective action restores the spring at 0.27 N/m/s, 1.35 % of its range per s).
+        continue_after_failure: a failure forces a replacement with downtime instead of ending the episode.
+        rul_max: RUL observations are clipped to [0, rul_max] (s).
+        load_std: range (low, high) of the random loads' std, fraction of the nominal load.
+        phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its window,
+            clock, sample rate and noise are the environment's (``phm_config``). None: the defaults.
+    """
+
+    step_seconds: float = 1.0
+    window_seconds: float | None = None
+    sample_rate: float = 100.0
+    noise: float = 0.01
+    horizon: int = 500
+    obs_mode: str = "phm"
+    costs: CostModel = field(default_factory=CostModel)
+    wear: dict[str, WearConfig] | None = None
+    corrective_rate: float = 0.02
+    continue_after_failure: bool = False
+    rul_max: float = 1000.0
+    load_std: tuple[float, float] = (0.2, 0.4)
+    phm: PHMConfig | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("step_seconds", "sample_rate", "corrective_rate", "rul_max"):
+            _check_positive(name, getattr(self, name))
+        if self.window_seconds is not None:
+            _check_positive("window_seconds", self.window_seconds)
+        if not (_is_number(self.noise) and 0 <= self.noise < 1):
+            raise ValueError(f"noise must be a number in [0, 1), got {self.noise!r}")
+        if not (isinstance(self.horizon, int) and not isinstance(self.horizon, bool) and self.horizon > 0):
+            raise ValueError(f"horizon must be a positive int, got {self.horizon!r}")
+        if self.obs_mode not in OBS_MODES:
+            raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {self.obs_mode!r}")
+        if not isinstance(self.costs, CostModel):
+            raise TypeError(f"costs must be a CostModel, got {type(self.costs).__name__}")
+        if self.wear is not None and not (
+            isinstance(self.wear, dict) and all(isinstance(k, str) and isinstance(v, WearConfig) for k, v in self.wear.items())
+        ):
+            raise TypeError(f"wear must be None or a dict of component name -> WearConfig, got {self.wear!r}")
+        if not isinstance(self.continue_after_failure, bool):
+            raise TypeError(f"continue_after_failure must be a bool, got {self.continue_after_failure!r}")
+        low_high = self.load_std
+        if not (isinstance(low_high, tuple) and len(low_high) == 2 and all(_is_number(v) for v in low_high) and 0 <= low_high[0] <= low_high[1]):
+            raise ValueError(f"load_std must be a tuple (low, high) of numbers with 0 <= low <= high, got {low_high!r}")
+        if self.phm is not None and not isinstance(self.phm, PHMConfig):
+            raise TypeError(f"phm must be None or a PHMConfig, got {type(self.phm).__name__}")
+
+    @property
+    def window(self) -> float:
+        """Measured operation per step (s)."""
+        return self.step_seconds if self.window_seconds is None else self.window_seconds
+
+    @property
+    def phm_config(self) -> PHMConfig:
+        """The chain's settings, its window, clock, sample rate and noise the environment's."""
+        return dataclasses.replace(
+            self.phm or PHMConfig(), step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise
+        )
+
+
+def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
+    """``config`` (default ``EnvConfig()``) with keyword overrides, each the name of a field.
+
+    ``costs=None`` stands for the default cost model (the environments' keyword has always allowed it).
+    """
+    if config is not None and not isinstance(config, EnvConfig):
+        raise TypeError(f"config must be an EnvConfig or None, got {type(config).__name__}")
+    names = [f.name for f in dataclasses.fields(EnvConfig)]
+    unknown = sorted(set(overrides) - set(names))
+    if unknown:
+        raise TypeError(f"unknown environment settings {unknown}; the settings are {names}")
+    if "costs" in overrides and overrides["costs"] is None:
+        overrides["costs"] = CostModel()
+    base = config if config is not None else EnvConfig()
+    return dataclasses.replace(base, **overrides) if overrides else base
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _check_positive(name: str, value: Any) -> None:
+    if not (_is_number(value) and value > 0):
+        raise ValueError(f"{name} must be a positive number, got {value!r}")

@@ -1,0 +1,196 @@
+"""The machines' operation over arrays of N systems: random loads, plant and fault-free reference
+simulated over a step's window, the sensors, and the wear of the degrading components.
+
+System i draws only from its own generator ``rngs[i]``, so that its episode is the same whether it
+is stepped alone or with others.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from ea_gym.bondgraph.simulation import simulate_measured
+from ea_gym.degradation import Wear, WearConfig
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.energy import window_samples
+from ea_gym.loads import multisine_rotations, rotated_multisine
+from ea_gym.models import SystemModel
+from ea_gym.sensors import SystemNoise
+
+LOAD_COMPONENTS = 16  # sines in each random load
+
+
+class Loads:
+    """Each system's random load: a random-phase multisine around the model's nominal load.
+
+    Args:
+        model: the machine (its nominal load (N, V, ...) and excitation bandwidth (Hz)).
+        n_systems: N.
+        h: sample period (s).
+        load_std: range (low, high) of the load's std, fraction of the nominal load.
+    """
+
+    def __init__(self, model: SystemModel, n_systems: int, h: float, load_std: tuple[float, float]):
+        self.model = model
+        self.h = h
+        self.load_std = load_std
+        n = n_systems
+        self.mean = np.zeros(n)
+        self.amplitude = np.zeros(n)
+        self.frequency = np.zeros((n, LOAD_COMPONENTS))  # Hz
+        self.phase = np.zeros((n, LOAD_COMPONENTS))  # rad
+        self.rotation = np.zeros((n, 3, LOAD_COMPONENTS))  # of the frequencies, kept for the episode
+
+    def draw(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
+        """New loads for the systems in the boolean ``mask``."""
+        model = self.model
+        for i in np.flatnonzero(mask):
+            rng = rngs[i]
+            std = model.nominal_load * rng.uniform(*self.load_std)
+            self.mean[i] = model.nominal_load
+            self.amplitude[i] = std * math.sqrt(2.0 / LOAD_COMPONENTS)
+            self.frequency[i] = model.excitation_bandwidth - rng.uniform(0.0, model.excitation_bandwidth, LOAD_COMPONENTS)
+            self.phase[i] = rng.uniform(0.0, 2.0 * math.pi, LOAD_COMPONENTS)
+        self.rotation[mask] = multisine_rotations(self.frequency[mask], self.h)
+
+    def signal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each system's load and its time derivative at its times ``t`` (N, T)."""
+        waves, slopes = rotated_multisine(t, self.phase, self.rotation)
+        amplitude = self.amplitude[:, None]
+        return self.mean[:, None] + amplitude * waves, amplitude * slopes
+
+
+@dataclass(frozen=True)
+class Window:
+    """One step's measured operation of N systems, T = samples + 1 points.
+
+    Attributes:
+        measured: the plant's noisy sensor signals (N, nx, T).
+        expected: the fault-free reference's noise-free signals (N, nx, T).
+        load: the load (N, T); load_rate: its time derivative (N, T), per s.
+    """
+
+    measured: np.ndarray
+    expected: np.ndarray
+    load: np.ndarray
+    load_rate: np.ndarray
+
+
+class Operation:
+    """The plant and its fault-free reference under the same loads, measured by the sensors.
+
+    Args:
+        model: the machine.
+        monitor: the EA monitor, whose measurement gains the sensors read through.
+        n_systems: N.
+        sample_rate: Hz.
+        window: measured operation per step (s).
+        noise: sensor noise, fraction of each signal's RMS.
+        load_std: range of the loads' std, fraction of the nominal load.
+    """
+
+    def __init__(
+        self, model: SystemModel, monitor: Monitor, n_systems: int, sample_rate: float, window: float, noise: float,
+        load_std: tuple[float, float],
+    ):
+        self.model = model
+        self.monitor = monitor
+        self.n = n_systems
+        self.h = 1.0 / sample_rate
+        self.window = window
+        self.samples = window_samples(window, self.h)
+        self.window_grid = np.arange(self.samples + 1) * self.h  # s
+        self.loads = Loads(model, n_systems, self.h, load_std)
+        self.sensor_noise = SystemNoise(noise)
+        nx = len(model.state_names)
+        self.plant = np.zeros((n_systems, nx))  # energy variables at the end of the last window
+        self.reference = np.zeros((n_systems, nx))
+        self.elapsed = np.zeros(n_systems)  # operation time (s): the load's clock
+
+    def start(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
+        """New episodes for the systems in ``mask``: at rest, a new load."""
+        self.stop(mask)
+        self.elapsed[mask] = 0.0
+        self.loads.draw(rngs, mask)
+
+    def stop(self, systems: np.ndarray) -> None:
+        """Stop the machines ``systems`` (indices or mask): plant and reference at rest."""
+        self.plant[systems] = 0.0
+        self.reference[systems] = 0.0
+
+    def load(self, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Each system's load and its derivative over one window from its time ``start`` (N,), on the
+        sample grid, (N, samples + 1)."""
+        return self.loads.signal(start[:, None] + self.window_grid)
+
+    def run(self, parameters: np.ndarray, rngs: Sequence[np.random.Generator]) -> Window:
+        """Simulate one window of every plant under its true ``parameters`` (N, P) and of the reference, and measure."""
+        u, du = self.load(self.elapsed)
+        n = self.n
+        nominal = self.model.parameter_vector()
+        # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
+        theta = np.concatenate([parameters, np.broadcast_to(nominal, parameters.shape)])
+        loads = np.concatenate([u, u])[..., None]
+        rates = np.concatenate([du, du])[..., None]
+        # the measurement matrices are diagonal: a product per state equals the matrix product exactly
+        gain = self.monitor.measurement_gain(theta)
+        x0 = np.concatenate([self.plant, self.reference])
+        signals, last = simulate_measured(self.model.state_space, self.h, loads, rates, theta, x0, gain)
+        self.plant, self.reference = last[:n], last[n:]
+        self.elapsed = self.elapsed + self.window
+        return Window(measured=self.sensor_noise(signals[:n], rngs), expected=signals[n:], load=u, load_rate=du)
+
+
+class Degradation:
+    """The wearing components of N systems: which one is faulty, its drift, and the true RUL.
+
+    Args:
+        model: the machine.
+        wear: how each wearing component wears (a subset of the maintainable ones).
+        components: the maintainable components, in the action space's order.
+        n_systems: N.
+    """
+
+    def __init__(self, model: SystemModel, wear: dict[str, WearConfig], components: tuple[str, ...], n_systems: int):
+        unknown = sorted(set(wear) - set(components))
+        if unknown:
+            raise ValueError(f"wear: unknown components {unknown}; maintainable components are {list(components)}")
+        wearing = [c for c in components if c in wear]
+        self.components = tuple(wearing)
+        self.parameter_index = np.array([model.parameter_names.index(c) for c in wearing])  # into the parameter vector
+        nominal = model.parameter_vector()
+        limits = np.array([model.safe_limits[c] for c in wearing])
+        self.wear = Wear(nominal[self.parameter_index], limits, [wear[c] for c in wearing], n_systems)
+        self._maintainable_index = np.array([components.index(c) for c in wearing])
+
+    def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray) -> None:
+        """A new fault for the systems in the boolean mask ``systems``, from their ``clock`` (s) on."""
+        self.wear.start(rngs, clock, systems)
+
+    def advance(self, parameters: np.ndarray, running: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> None:
+        """Wear the ``running`` machines' parameters (N, P, in place) over ``dt`` seconds from ``clock``."""
+        wearing = parameters[:, self.parameter_index]
+        worn = self.wear.advance(wearing, clock, dt, rngs)
+        parameters[:, self.parameter_index] = np.where(running[:, None], worn, wearing)
+
+    def true_rul(self, parameters: np.ndarray, clock: np.ndarray) -> np.ndarray:
+        """Each system's true remaining useful life (s), (N,)."""
+        return self.wear.true_rul(parameters[:, self.parameter_index], clock)
+
+    def faulty_component(self, i: int) -> str:
+        """The component system i's fault is (or will be) in."""
+        return self.components[int(self.wear.faulty[i])]
+
+    def faulty_parameters(self) -> np.ndarray:
+        """Each system's faulty parameter, an index into the parameter vector, (N,)."""
+        return self.parameter_index[self.wear.faulty]
+
+    def diagnosis_class(self, clock: np.ndarray) -> np.ndarray:
+        """Each system's true class (N,): 0 before its fault arrives, then 1 + its faulty component's
+        index among the maintainable ones."""
+        arrived = clock >= self.wear.arrival
+        return np.where(arrived, self._maintainable_index[self.wear.faulty] + 1, 0)
