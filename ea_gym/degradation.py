@@ -159,7 +159,7 @@ class Wear:
 
     def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray) -> None:
         """Draw a new fault for the systems in the boolean mask, arriving after their ``clock`` (s)."""
-        for i in np.flatnonzero(systems):
+        for i in np.flatnonzero(systems).tolist():
             rng = rngs[i]
             d = int(rng.integers(len(self.configs)))
             config = self.configs[d]

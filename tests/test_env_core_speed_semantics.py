@@ -150,7 +150,7 @@ def test_batched_sensor_noise_draws_what_each_system_would():
     rngs = [np.random.default_rng(10 + i) for i in range(4)]
     again = [np.random.default_rng(10 + i) for i in range(4)]
     expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(4)])
-    np.testing.assert_array_equal(core.sensor_noise(clean, rngs), expected)
+    np.testing.assert_array_equal(core.operation.sensor_noise(clean, rngs), expected)
     assert all(a.random() == b.random() for a, b in zip(rngs, again))  # each generator left in the same state
 
 
@@ -164,10 +164,10 @@ def test_compiled_noise_draws_follow_any_bit_generator_and_new_generators():
         again = [np.random.Generator(kind(20 + i)) for i in range(3)]
         for _ in range(2):  # the second call reuses the addresses taken by the first
             expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(3)])
-            np.testing.assert_array_equal(core.sensor_noise(clean, rngs), expected)
+            np.testing.assert_array_equal(core.operation.sensor_noise(clean, rngs), expected)
         rngs[1], again[1] = np.random.Generator(kind(99)), np.random.Generator(kind(99))
         expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(3)])
-        np.testing.assert_array_equal(core.sensor_noise(clean, rngs), expected)
+        np.testing.assert_array_equal(core.operation.sensor_noise(clean, rngs), expected)
         assert all(a.random() == b.random() for a, b in zip(rngs, again))
 
 

@@ -57,7 +57,7 @@ class EnvConfig:
         if self.window_seconds is not None:
             _check_positive("window_seconds", self.window_seconds)
         if not (_is_number(self.noise) and 0 <= self.noise < 1):
-            raise ValueError(f"noise must be a number in [0, 1), got {self.noise!r}")
+            raise ValueError(f"noise must be in [0, 1), got {self.noise!r}")
         if not (isinstance(self.horizon, int) and not isinstance(self.horizon, bool) and self.horizon > 0):
             raise ValueError(f"horizon must be a positive int, got {self.horizon!r}")
         if self.obs_mode not in OBS_MODES:
@@ -99,7 +99,7 @@ def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
     names = [f.name for f in dataclasses.fields(EnvConfig)]
     unknown = sorted(set(overrides) - set(names))
     if unknown:
-        raise TypeError(f"unknown environment settings {unknown}; the settings are {names}")
+        raise TypeError(f"unexpected keyword argument {unknown[0]!r}: not an environment setting ({', '.join(names)})")
     if "costs" in overrides and overrides["costs"] is None:
         overrides["costs"] = CostModel()
     base = config if config is not None else EnvConfig()

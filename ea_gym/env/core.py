@@ -190,7 +190,7 @@ class MaintenanceCore:
 
         terminated = failed & (not self.config.continue_after_failure)
         truncated = (self._steps >= self.config.horizon) & ~terminated
-        total = sum(costs.values())
+        total = sum(costs.values(), np.zeros(self.n))
         costs["total"] = total
         observation = self.observe(outputs)
         info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events)
@@ -282,7 +282,7 @@ class MaintenanceCore:
             }
         monitored = self.monitor.update(window.measured, window.expected, window.load)
         ea, ea_ref = monitored.ea.sum(-1), monitored.ea_reference.sum(-1)
-        eai = np.stack(list(activity_index(dict(enumerate(ea[:, self._rco_index].T))).values()), axis=1)
+        eai = np.stack(list(activity_index(dict(zip(self.rco, ea[:, self._rco_index].T))).values()), axis=1)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
 
     def observe(self, outputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:

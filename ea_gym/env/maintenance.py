@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Any, SupportsInt
+from typing import Any, SupportsInt, cast
 
 import gymnasium as gym
 import numpy as np
@@ -53,7 +53,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
     | `eai` | (C,) | Energy Activity Index of every component |
     | `residual` | (E,) | relative EA residual, (EA - EA_ref) / EA_ref |
     | `diagnosis` | (K,) | class probabilities, classes in `env.unwrapped.diagnosis_classes` |
-    | `parameter_estimate` | (n,) | estimate of each component's parameter as its position in the safe range: 0 lower limit, 1 upper (clipped to [-1, 2]) |
+    | `parameter_estimate` | (n,) | each component's estimated parameter, its position in the safe range (0 lower limit, 1 upper), in [-1, 2] |
     | `rul` | (3,) | estimated RUL (s): point, interval low, interval high, clipped to [0, `rul_max`] |
     | `time_since_maintenance` | (1,) | s |
     | `maintenance_in_progress` | (1,) | 1 while the machine is down |
@@ -127,7 +127,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
         self.nominal_parameters = self.core.nominal_parameters
         self.safe_limits = self.core.safe_limits
         self.action_space = spaces.Discrete(len(self.action_meanings))
-        self.observation_space = self.core.observer.space()
+        self.observation_space = cast(spaces.Space[Observation], self.core.observer.space())
         self._history: list[dict[str, Any]] = []
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Observation, dict[str, Any]]:
@@ -138,7 +138,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
 
     def step(self, action: SupportsInt) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
         if not self.action_space.contains(action):
-            raise ValueError(f"action must be an int in [0, {self.action_space.n - 1}] ({self.action_meanings}), got {action!r}")
+            raise ValueError(f"action must be an int in [0, {len(self.actions) - 1}] ({self.action_meanings}), got {action!r}")
         result = self.core.step(np.array([int(action)]), [self.np_random])
         observation = _first(result.observation)
         info = result.info.system(0)

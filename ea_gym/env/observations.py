@@ -8,6 +8,7 @@ and but for the "sensors" mode ``diagnosis`` (K,), ``parameter_estimate`` (n,) a
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from gymnasium import spaces
@@ -61,7 +62,7 @@ class Observer:
         """The Dict observation space of one system."""
         E, C, K, n = len(self.elements), len(self.components), len(self.classes), len(self.limits)
         config = self.config
-        keys = {
+        keys: dict[str, spaces.Space[Any]] = {
             "ea": spaces.Box(0.0, OBSERVATION_BOUND, (E,), np.float32),
             "eai": spaces.Box(0.0, 1.0, (C,), np.float32),
             "residual": spaces.Box(-OBSERVATION_BOUND, OBSERVATION_BOUND, (E,), np.float32),

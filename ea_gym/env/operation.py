@@ -48,7 +48,7 @@ class Loads:
     def draw(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         """New loads for the systems in the boolean ``mask``."""
         model = self.model
-        for i in np.flatnonzero(mask):
+        for i in np.flatnonzero(mask).tolist():
             rng = rngs[i]
             std = model.nominal_load * rng.uniform(*self.load_std)
             self.mean[i] = model.nominal_load

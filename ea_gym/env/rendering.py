@@ -61,6 +61,6 @@ def render_rgb(env: Any, history: list[dict[str, Any]]) -> np.ndarray:
         ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.canvas.draw()
-    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()
+    image = np.asarray(fig.canvas.buffer_rgba())[..., :3].copy()  # type: ignore[attr-defined]  # the Agg canvas
     plt.close(fig)
     return image

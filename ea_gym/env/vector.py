@@ -66,6 +66,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarra
         self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None
     ) -> tuple[Observation, dict[str, Any]]:
         """Reset every system; ``seed`` is an int (system i gets seed + i), a list of N seeds, or None."""
+        seeds: list[int | None]
         if seed is None:
             seeds = [None] * self.num_envs
         elif isinstance(seed, (int, np.integer)):
@@ -98,7 +99,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarra
             final_info = np.empty(self.num_envs, dtype=object)
             for i in np.flatnonzero(done):
                 final_obs[i] = {key: value[i] for key, value in observation.items()}
-                final_info[i] = result.info.system(i)
+                final_info[i] = result.info.system(int(i))
             fresh = self.core.reset(self._generators, done)
             observation = {key: np.where(_rows(done, value), fresh[key], value) for key, value in observation.items()}
             infos.update(final_obs=final_obs, _final_obs=done, final_info=final_info, _final_info=done)
