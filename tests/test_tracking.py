@@ -49,18 +49,21 @@ def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, v
             z[s, f, nx] += h * z[s, f, nx + 1]
             Q = np.diag(np.concatenate([est.config.state_noise * variance[s] / g**2, est.process_noise[f]]))
             P[s, f] = F @ P[s, f] @ F.T + Q
-            g = hyp.gain[f].copy()
-            H = np.zeros((nx, nx + 2))
-            if hyp.own[f] >= 0:
-                g[hyp.own[f]] = 1 / z[s, f, nx]
-                H[hyp.own[f], nx] = -z[s, f, hyp.own[f]] / z[s, f, nx] ** 2
-            H[np.arange(nx), np.arange(nx)] = g
-            nu = measured[s, :, k] - g * z[s, f, :nx]
-            S = H @ P[s, f] @ H.T + np.diag(variance[s])
-            K = np.linalg.solve(S, H @ P[s, f]).T
-            ll[s, f] = est.forget * ll[s, f] - 0.5 * (nu @ np.linalg.solve(S, nu) + np.log(np.linalg.det(S)) + nx * np.log(2 * np.pi))
-            z[s, f] += K @ nu
-            P[s, f] -= K @ S @ K.T
+            density = 0.0
+            for i in range(nx):  # channel by channel, each linearised where the previous left the state
+                H = np.zeros(nx + 2)
+                H[i] = hyp.gain[f, i]
+                if i == hyp.own[f]:
+                    H[i] = 1 / z[s, f, nx]
+                    H[nx] = -z[s, f, i] / z[s, f, nx] ** 2
+                nu = measured[s, i, k] - H[i] * z[s, f, i]
+                S = H @ P[s, f] @ H + variance[s, i]
+                K = P[s, f] @ H / S
+                density -= 0.5 * (np.log(S) + np.log(2 * np.pi) + nu**2 / S)
+                z[s, f] += K * nu
+                P[s, f] -= np.outer(K, K) * S
+            z[s, f, nx] = np.clip(z[s, f, nx], hyp.lo[f], hyp.hi[f])
+            ll[s, f] = est.forget * ll[s, f] + density
 
 
 def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, model=None):

@@ -52,99 +52,112 @@ def chebyshev_matrices(
             slope[i, j] = d * scale
 
 
+#: Filters run side by side, one system per lane: their loops (lanes innermost) fill the SIMD lanes.
+LANES = 32
+
+
 @numba.njit(cache=True)
 def predict(
-    z: np.ndarray, P: np.ndarray, M: np.ndarray, dM: np.ndarray, w: np.ndarray, h: float, q: np.ndarray, F: np.ndarray, T: np.ndarray
+    Z: np.ndarray, P: np.ndarray, M: np.ndarray, dM: np.ndarray, W: np.ndarray, h: float, Q: np.ndarray, F: np.ndarray, T: np.ndarray, lanes: int
 ) -> None:
-    """Time update of one filter over one interval: z and P in place; M = [Phi | Gamma], dM its theta-slope.
+    """Time update of a block of filters over one interval, in place; every array has a last, lane axis.
 
-    q: process-noise variances added to the diagonal (n,); F, T: (n, n) workspaces: F's first nx rows
-    are the Jacobian's state rows, the others are known (theta' = theta + h drift, drift' = drift), and
-    its last row holds the new states meanwhile.
+    Z: (n, B) states [x, theta, drift]; P: (n, n, B); M = [Phi | Gamma] (nx, nx + 4, B), dM its
+    theta-slope; W: (4, B) the input's coefficients; Q: (n, B) process-noise variances. F: (nx, 2, B)
+    workspace (the Jacobian's theta column, the new states); T: (n, n, B) workspace. The Jacobian's
+    other entries are Phi and the known rows theta' = theta + h drift, drift' = drift.
     """
-    n = z.shape[0]
+    n = Z.shape[0]
     nx = n - 2
-    m = w.shape[0]
-    x_new = F[n - 1]
     for i in range(nx):
-        acc = 0.0
-        sens = 0.0
+        for b in range(lanes):
+            F[i, 0, b] = 0.0
+            F[i, 1, b] = 0.0
         for j in range(nx):
-            acc += M[i, j] * z[j]
-            sens += dM[i, j] * z[j]
-            F[i, j] = M[i, j]
-        for j in range(m):
-            acc += M[i, nx + j] * w[j]
-            sens += dM[i, nx + j] * w[j]
-        x_new[i] = acc
-        F[i, nx] = sens
-    z[:nx] = x_new[:nx]
-    z[nx] += h * z[nx + 1]
-    # P = F P F^T + diag(q); only the state rows of F are general
+            for b in range(lanes):
+                F[i, 1, b] += M[i, j, b] * Z[j, b]
+                F[i, 0, b] += dM[i, j, b] * Z[j, b]
+        for j in range(4):
+            for b in range(lanes):
+                F[i, 1, b] += M[i, nx + j, b] * W[j, b]
+                F[i, 0, b] += dM[i, nx + j, b] * W[j, b]
+    for b in range(lanes):
+        for i in range(nx):
+            Z[i, b] = F[i, 1, b]
+        Z[nx, b] += h * Z[nx + 1, b]
+    propagate_covariance(P, M, F, h, Q, T, lanes)
+
+
+@numba.njit(cache=True)
+def propagate_covariance(P: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, Q: np.ndarray, T: np.ndarray, lanes: int) -> None:
+    """P = J P J^T + diag(Q) for the Jacobian J of ``predict`` (Phi and theta column F[:, 0] in the state rows)."""
+    jacobian_times(P, M, F, h, T, lanes)  # T = J P, symmetric P: T^T = P J^T
+    jacobian_times(T.transpose((1, 0, 2)), M, F, h, P, lanes)  # P = J T^T = J P J^T
+    n = P.shape[0]
+    for i in range(n):
+        for b in range(lanes):
+            P[i, i, b] += Q[i, b]
+
+
+@numba.njit(cache=True)
+def jacobian_times(X: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, out: np.ndarray, lanes: int) -> None:
+    """out = J X for every lane, J as in ``propagate_covariance``; X, out: (n, n, B)."""
+    n = X.shape[0]
+    nx = n - 2
     for i in range(n):
         for j in range(n):
             if i < nx:
-                acc = F[i, nx] * P[nx, j]
+                for b in range(lanes):
+                    out[i, j, b] = F[i, 0, b] * X[nx, j, b]
                 for k in range(nx):
-                    acc += F[i, k] * P[k, j]
-            elif i == nx:
-                acc = P[nx, j] + h * P[nx + 1, j]
+                    for b in range(lanes):
+                        out[i, j, b] += M[i, k, b] * X[k, j, b]
             else:
-                acc = P[nx + 1, j]
-            T[i, j] = acc
-    for i in range(n):
-        for j in range(i + 1):
-            if j < nx:
-                acc = T[i, nx] * F[j, nx]
-                for k in range(nx):
-                    acc += T[i, k] * F[j, k]
-            elif j == nx:
-                acc = T[i, nx] + h * T[i, nx + 1]
-            else:
-                acc = T[i, nx + 1]
-            P[i, j] = acc
-            P[j, i] = acc
-        P[i, i] += q[i]
+                for b in range(lanes):
+                    out[i, j, b] = X[nx, j, b] + h * X[nx + 1, j, b] if i == nx else X[nx + 1, j, b]
 
 
 @numba.njit(cache=True)
-def correct(z: np.ndarray, P: np.ndarray, y: np.ndarray, r: np.ndarray, gain: np.ndarray, own: int, work: np.ndarray) -> float:
-    """Measurement update of one filter from y = g x + noise of variances r; returns the innovation's log-density.
+def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np.ndarray, own: int, work: np.ndarray, lanes: int) -> None:
+    """Measurement update of a block of filters from y = g x + noise of variances R (nx, B); the
+    innovations' log-densities go to work[n + 4] (B,).
 
-    The noise is independent across channels, so the joint update is the channels' scalar updates in
-    turn (the same posterior, and the log-density is the sum of the conditional ones), all linearised
-    at the predicted state as the joint update is: no matrix inverse. ``own``: the state whose gain is
-    1 / theta (-1: none). ``work``: (3, n) scratch.
+    The noise is independent across channels, so the channels update in turn, each a scalar update
+    linearised at the state the previous ones left (exact where y is linear in the state; for the
+    momentum read through 1 / theta, one relinearisation on the way): no matrix inverse, and the
+    log-density is the sum of the channels' conditional ones. ``own``: the state whose gain is
+    1 / theta (-1: none). ``work``: (n + 5, B) scratch: P h, then g, d y / d theta, the innovation,
+    its variance and the log-density.
     """
-    n = z.shape[0]
+    n = Z.shape[0]
     nx = n - 2
-    prior = work[0]  # the predicted state, where the measurement is linearised
-    column = work[1]
-    for a in range(n):
-        prior[a] = z[a]
-    log_density = 0.0
+    G, D, V, S, L = n, n + 1, n + 2, n + 3, n + 4  # rows of work
+    for b in range(lanes):
+        work[L, b] = 0.0
     for i in range(nx):
-        g = 1.0 / prior[nx] if i == own else gain[i]
-        d = -prior[i] * g * g if i == own else 0.0  # d y_i / d theta
-        # the channel's innovation about the state updated so far, through the fixed linearisation
-        nu = y[i] - g * prior[i] - g * (z[i] - prior[i]) - d * (z[nx] - prior[nx])
+        for b in range(lanes):
+            g = 1.0 / Z[nx, b] if i == own else gain[i]
+            work[G, b] = g
+            work[D, b] = -Z[i, b] * g * g if i == own else 0.0
+            work[V, b] = Y[i, b] - g * Z[i, b]
         for a in range(n):
-            column[a] = g * P[a, i] + d * P[a, nx]  # P h
-        s = g * column[i] + d * column[nx] + r[i]
-        log_density -= 0.5 * (math.log(s) + LOG_2PI + nu * nu / s)
+            for b in range(lanes):
+                work[a, b] = work[G, b] * P[a, i, b] + work[D, b] * P[a, nx, b]
+        for b in range(lanes):
+            work[S, b] = work[G, b] * work[i, b] + work[D, b] * work[nx, b] + R[i, b]
+            work[L, b] -= 0.5 * (math.log(work[S, b]) + LOG_2PI + work[V, b] * work[V, b] / work[S, b])
         for a in range(n):
-            z[a] += column[a] * nu / s
-        for a in range(n):
-            ka = column[a] / s
-            for b in range(a + 1):
-                P[a, b] -= ka * column[b]
-                P[b, a] = P[a, b]
-    return log_density
+            for b in range(lanes):
+                Z[a, b] += work[a, b] * (work[V, b] / work[S, b])
+            for c in range(a + 1):
+                for b in range(lanes):
+                    P[a, c, b] -= work[a, b] / work[S, b] * work[c, b]
+                    P[c, a, b] = P[a, c, b]
 
 
 @numba.njit(cache=True)
 def hermite_row(u0: float, u1: float, d0: float, d1: float, h: float, w: np.ndarray) -> None:
-    """The input's Taylor coefficients [u, u', u'', u'''] over one interval, as the plant's integrator forms them."""
+    """The input's Taylor coefficients (value, first to third derivative) over one interval, as the plant's integrator forms them."""
     slope = (u1 - u0) / h
     c2 = (3.0 * slope - 2.0 * d0 - d1) / h
     c3 = (d0 + d1 - 2.0 * slope) / (h * h)
@@ -173,41 +186,66 @@ def track(
         measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
         z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
     """
-    n_hyp = coefficients.shape[0]
+    S = systems.shape[0]
+    B = max(1, min(LANES, S))
+    W = np.empty((measured.shape[2], 4, B))  # the input's coefficients per interval, shared by the hypotheses
+    for s0 in range(0, S, B):
+        lanes = min(B, S - s0)
+        for b in range(lanes):
+            s = s0 + b
+            for k in range(1, measured.shape[2]):
+                hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, W[k, :, b])
+        block = slice(s0, s0 + lanes)
+        for f in range(coefficients.shape[0]):
+            track_block(
+                coefficients[f], terms[f], lo[f], hi[f], gain[f], own[f], q[f], state_noise, forget, h,
+                systems[block], measured[block], variance[block], W, z[:, f], P[:, f], log_likelihood[:, f],
+            )
+
+
+@numba.njit(cache=True)
+def track_block(
+    coefficients: np.ndarray, terms: int, lo: float, hi: float, gain: np.ndarray, own: int, q: np.ndarray, state_noise: float, forget: float,
+    h: float, systems: np.ndarray, measured: np.ndarray, variance: np.ndarray, W: np.ndarray, z: np.ndarray, P: np.ndarray,
+    log_likelihood: np.ndarray,
+) -> None:
+    """One hypothesis's filters of a block of systems, one a lane, over the step: ``track``'s arguments for that hypothesis."""
+    lanes, B = systems.shape[0], W.shape[2]
     nx = measured.shape[1]
     n = nx + 2
-    M = np.empty(coefficients.shape[2:])
-    M0 = np.empty(coefficients.shape[2:])
-    dM = np.empty(coefficients.shape[2:])
-    w = np.empty((measured.shape[2], 4))  # the input's coefficients over each interval, shared by the hypotheses
-    F = np.empty((n, n))
-    T = np.empty((n, n))
-    qf = np.empty(n)
-    work = np.empty((3, n))
-    basis = np.empty((2, coefficients.shape[1]))
-    for s in range(systems.shape[0]):
-        row = systems[s]
-        for k in range(1, measured.shape[2]):
-            hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, w[k])
-        for f in range(n_hyp):
-            zf = z[row, f]
-            Pf = P[row, f]
-            qf[nx] = q[f, 0]
-            qf[nx + 1] = q[f, 1]
-            # the interpolant at the step's first theta, carried to each sample's theta by its slope:
-            # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
-            anchor = zf[nx]
-            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], anchor, M0, dM, basis)
-            for k in range(1, measured.shape[2]):
-                shift = zf[nx] - anchor
-                for i in range(nx):
-                    for j in range(coefficients.shape[3]):
-                        M[i, j] = M0[i, j] + dM[i, j] * shift
-                for i in range(nx):
-                    g = 1.0 / zf[nx] if i == own[f] else gain[f, i]
-                    qf[i] = state_noise * variance[s, i] / (g * g)
-                predict(zf, Pf, M, dM, w[k], h, qf, F, T)
-                density = correct(zf, Pf, measured[s, :, k], variance[s], gain[f], own[f], work)
-                # theta stays where the model is defined (and positive, for a gain 1 / theta)
-                zf[nx] = min(hi[f], max(lo[f], zf[nx]))
-                log_likelihood[row, f] = forget * log_likelihood[row, f] + density
+    cols = coefficients.shape[2]
+    Z, PP = np.empty((n, B)), np.empty((n, n, B))
+    M, M0, dM = np.empty((nx, cols, B)), np.empty((nx, cols, B)), np.empty((nx, cols, B))
+    value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[0]))
+    Q, R, Y, anchor = np.zeros((n, B)), np.empty((nx, B)), np.empty((nx, B)), np.empty(B)
+    F, T, work = np.empty((nx, 2, B)), np.empty((n, n, B)), np.empty((n + 5, B))
+    for b in range(lanes):
+        row = systems[b]
+        Z[:, b] = z[row]
+        PP[:, :, b] = P[row]
+        anchor[b] = z[row, nx]
+        # the interpolant at the step's first theta, carried to each sample's theta by its slope:
+        # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
+        chebyshev_matrices(coefficients, terms, lo, hi, anchor[b], value, slope, basis)
+        M0[:, :, b] = value
+        dM[:, :, b] = slope
+        R[:, b] = variance[b]
+        Q[nx, b], Q[nx + 1, b] = q[0], q[1]
+    for k in range(1, measured.shape[2]):
+        for i in range(nx):
+            for b in range(lanes):
+                g = 1.0 / Z[nx, b] if i == own else gain[i]
+                Q[i, b] = state_noise * R[i, b] / (g * g)
+                Y[i, b] = measured[b, i, k]
+            for j in range(cols):
+                for b in range(lanes):
+                    M[i, j, b] = M0[i, j, b] + dM[i, j, b] * (Z[nx, b] - anchor[b])
+        predict(Z, PP, M, dM, W[k], h, Q, F, T, lanes)
+        correct(Z, PP, Y, R, gain, own, work, lanes)
+        for b in range(lanes):
+            # theta stays where the model is defined (and positive, for a gain 1 / theta)
+            Z[nx, b] = min(hi, max(lo, Z[nx, b]))
+            log_likelihood[systems[b]] = forget * log_likelihood[systems[b]] + work[n + 4, b]
+    for b in range(lanes):
+        z[systems[b]] = Z[:, b]
+        P[systems[b]] = PP[:, :, b]
