@@ -169,7 +169,7 @@ def test_write_phm_outputs_leaves_nothing_when_a_figure_fails(setting, tmp_path,
     def broken(*args, **kwargs):
         raise RuntimeError("figure failed")
 
-    monkeypatch.setitem(reporting._PLOTS, "rul", broken)
+    monkeypatch.setitem(reporting.PLOTS, "rul", broken)
     out = tmp_path / "report"
     with pytest.raises(RuntimeError, match="figure failed"):
         reporting.write_phm_outputs(out, run, chain, scenario, "test run")

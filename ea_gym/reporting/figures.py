@@ -1,0 +1,333 @@
+"""Figures of one scenario run through the PHM chain (paper Figs 9, 12, 13, plus RUL and detection).
+
+:func:`plot_time_frequency`, :func:`plot_estimate`, :func:`plot_estimate_error`, :func:`plot_rul` and
+:func:`plot_signals` each draw one PNG from the run, the chain and the results of
+:func:`~ea_gym.reporting.results.chain_results`; ``PLOTS`` names them as ``FIGURES`` does their files.
+
+Units: times in s, parameters in their SI unit (``SystemModel.units``), EA in J, frequencies in Hz.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import os
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.colors import LogNorm
+from numpy.typing import ArrayLike
+
+from ea_gym.diagnosis.features import residual_spectrogram
+from ea_gym.files import save_figure
+from ea_gym.phm import ChainRun, PHMChain
+from ea_gym.pyplot import plt
+from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results, truth_limits
+from ea_gym.scenario import Scenario
+
+#: figure name -> (file name, caption)
+FIGURES: dict[str, tuple[str, str]] = {
+    "time_frequency": ("time_frequency.png", "Time-frequency map of the I element's EA residual (paper Fig 9)"),
+    "estimate": ("estimate.png", "Parameter estimate, truth, safe limits and End-of-Life extrapolations (paper Fig 12)"),
+    "estimate_error": ("estimate_error.png", "Estimation error over time (paper Fig 13)"),
+    "rul": ("rul.png", "Remaining Useful Life: prediction, interval and truth with the alpha cone"),
+    "signals": ("signals.png", "Measured and reference Energy Activity per element, detection statistic"),
+}
+
+
+def _mark_events(ax: Any, results: dict, scenario: Scenario, label: bool = True) -> None:
+    """Vertical lines at the fault onset, the profile's breakpoints and the detection time."""
+    if scenario.fault is not None:
+        times = scenario.fault.profile.times
+        for j, tb in enumerate(times):
+            ax.axvline(tb, color="0.6", lw=0.8, ls=":", label="profile breakpoints" if label and j == 0 else None)
+    if results.get("detection_time") is not None:
+        ax.axvline(results["detection_time"], color="tab:red", lw=1.0, ls="--",
+                   label=f"detection {results['detection_time']:g} s" if label else None)
+
+
+def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+                        results: dict | None = None) -> Path:
+    """Paper Fig 9: |STFT| of the I element's EA residual series over time and frequency.
+
+    The STFT window is the isolation frame (``chain.config.frame`` in sub-windows), the hop 1 s;
+    each column is drawn at the centre time of its window; frequencies up to the model's excitation
+    bandwidth. Colour: log scale, three decades below the maximum.
+    """
+    results = chain_results(run, chain, scenario) if results is None else results
+    sub = chain.monitor.config.sub_window
+    frame = round(chain.config.frame / sub)
+    hop = max(round(1.0 / sub), 1)
+    i = chain.monitor.inertia_index
+    name = chain.monitor.elements[i]
+    series = run.residual_series[i]
+    fig, ax = plt.subplots(figsize=(10, 5))
+    if len(series) < frame:
+        ax.text(0.5, 0.5, f"run shorter than one {chain.config.frame:g} s frame", ha="center", transform=ax.transAxes)
+    else:
+        frequencies, times, magnitude = residual_spectrogram(series, sub, frame, hop)
+        times = times + 0.5 * sub  # sub-window j is centred at (j + 1/2) sub_window
+        keep = frequencies <= chain.model.excitation_bandwidth + 1e-9
+        shown = magnitude[keep]
+        top = float(shown.max()) if shown.size and shown.max() > 0 else 1.0
+        mesh = ax.pcolormesh(times, frequencies[keep], np.maximum(shown, top * 1e-3), shading="nearest",
+                             norm=LogNorm(vmin=top * 1e-3, vmax=top), cmap="viridis")
+        colorbar = fig.colorbar(mesh, ax=ax)
+        colorbar.set_label(f"|STFT| of the EA residual of {name} (J)")
+        _mark_events(ax, results, scenario)
+        ax.set_xlim(0, float(run.t[-1]))
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
+    ax.set_xlabel(f"time (s, centre of the {chain.config.frame:g} s STFT window, hop {hop * sub:g} s)")
+    ax.set_ylabel("frequency (Hz)")
+    ax.set_title(f"Time-frequency map of the EA residual of the I element {name}")
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def _truth_curve(scenario: Scenario, parameter: str, end: float) -> tuple[np.ndarray, np.ndarray]:
+    t = np.linspace(0.0, end, 2001)
+    index = scenario.model.parameter_names.index(parameter)
+    return t, scenario.parameters_at(t)[:, index]
+
+
+def _fit_steps(run: ChainRun, chain: PHMChain, results: dict) -> list[int]:
+    """Steps whose extrapolation is drawn: the middle prediction of each scored phase, else up to 3
+    predictions spread over the run."""
+    t = run.t
+    chosen: list[float] = []
+    phases = (results.get("metrics") or {}).get("eol_phases") or []
+    for phase in phases:
+        first, last = phase["prediction_times"]
+        chosen.append(0.5 * (first + last))
+    if not chosen:
+        times = [p["t"] for p in results["eol_predictions"]]
+        if times:
+            chosen = [times[int(k)] for k in np.unique(np.linspace(0, len(times) - 1, min(3, len(times))).round())]
+    finite = np.array([math.isfinite(float(s.eol[0])) for s in run.statuses])
+    steps = []
+    for target in chosen[:3]:
+        candidates = np.flatnonzero(finite)
+        if len(candidates):
+            steps.append(int(candidates[np.argmin(np.abs(t[candidates] - target))]))
+    return sorted(set(steps))
+
+
+def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+                  results: dict | None = None) -> Path:
+    """Paper Fig 12: the isolated parameter's estimate vs the truth, the safe limits, and the degree-1
+    extrapolations from a prediction time in each phase up to the limit, with the predicted End of
+    Life (x) and the true trend's End of Life (circle)."""
+    results = chain_results(run, chain, scenario) if results is None else results
+    estimate = results["estimate"]
+    parameter = estimate["parameter"] or (scenario.fault.parameter if scenario.fault else None)
+    fig, ax = plt.subplots(figsize=(10, 5.5))
+    end = float(run.t[-1])
+    if parameter is None:
+        ax.text(0.5, 0.5, "no parameter isolated", ha="center", transform=ax.transAxes)
+        return save_figure(fig, path)
+    unit = scenario.model.units.get(parameter, "")
+    lower, upper = chain.model.safe_limits[parameter]
+    right = end
+    colors = ["tab:orange", "tab:purple", "tab:brown"]
+    for k, i in enumerate(_fit_steps(run, chain, results) if estimate["parameter"] else []):
+        prediction = run.statuses[i].end_of_life[0]
+        if prediction is None or not math.isfinite(prediction.eol):
+            continue
+        fit, eol = prediction.fit, prediction.eol
+        level = lower if prediction.limit == "lower" else upper
+        x = np.linspace(fit.times[0], eol, 200)
+        color = colors[k % len(colors)]
+        ax.plot(x, np.polyval(fit.coefficients, x - fit.t), color=color, lw=1.4, ls="-.",
+                label=f"degree-{len(fit.coefficients) - 1} fit at t = {fit.t:g} s")
+        ax.plot([fit.t], [np.polyval(fit.coefficients, 0.0)], "o", color=color, ms=5)
+        ax.plot([eol], [level], "x", color=color, ms=10, mew=2.5, zorder=5)
+        text = f"EoL {eol:.1f} s"
+        if scenario.fault is not None and scenario.fault.parameter == parameter:
+            true_eol = float(scenario.fault.profile.trend_end_of_life(np.array([fit.t]), truth_limits(scenario, parameter))[0])
+            if math.isfinite(true_eol):
+                true_level = truth_limits(scenario, parameter)[0 if prediction.limit == "lower" else 1]
+                ax.plot([true_eol], [true_level], "o", color=color, ms=13, mfc="none", mew=1.5, zorder=6)
+                text += f" (true {true_eol:.1f} s)"
+                right = max(right, true_eol)
+        offset = 8 if prediction.limit == "upper" else -16
+        ax.annotate(text, (eol, level), textcoords="offset points", xytext=(-150 if eol > 0.8 * right else -40, offset),
+                    color=color, fontsize=9, fontweight="bold")
+        right = max(right, eol)
+    right = min(right, 2.0 * end) * 1.02
+    if scenario.fault is not None and scenario.fault.parameter == parameter:
+        tt, truth = _truth_curve(scenario, parameter, right)
+        ax.plot(tt, truth, color="k", lw=1.5, label="true value")
+    ax.plot(estimate["t"], estimate["value"], ".", color="tab:blue", ms=4, label="EA estimate (filtered)")
+    ax.axhline(lower, color="tab:red", lw=1.0, label=f"safe limits {lower:g} / {upper:g} {unit}")
+    ax.axhline(upper, color="tab:red", lw=1.0)
+    ax.plot([], [], "x", color="0.3", ms=8, mew=2, label="predicted EoL")
+    ax.plot([], [], "o", color="0.3", ms=9, mfc="none", label="true trend EoL")
+    span = upper - lower
+    ax.set_ylim(lower - 0.15 * span, upper + 0.35 * span)  # room for the legend above the limits
+    ax.set_xlim(0, right)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(f"{parameter} ({unit})")
+    ax.set_title(f"Estimate of {parameter} and End-of-Life extrapolation")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper center", fontsize=8, ncol=3, framealpha=0.85)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+                        results: dict | None = None) -> Path:
+    """Paper Fig 13: estimate minus truth over time (parameter unit, and % of nominal on the right)."""
+    results = chain_results(run, chain, scenario) if results is None else results
+    estimate = results["estimate"]
+    parameter = estimate["parameter"]
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    if parameter is None or not estimate["t"]:
+        ax.text(0.5, 0.5, "no estimate", ha="center", transform=ax.transAxes)
+        return save_figure(fig, path)
+    t = np.array(estimate["t"])
+    index = scenario.model.parameter_names.index(parameter)
+    error = np.array(estimate["value"]) - scenario.parameters_at(t)[:, index]
+    unit = scenario.model.units.get(parameter, "")
+    nominal = float(scenario.model.nominal[parameter])
+    ax.axvspan(0, ESTIMATION_START, color="0.9", label=f"start-up (not scored, < {ESTIMATION_START:g} s)")
+    ax.plot(t, error, ".-", color="tab:blue", ms=4, lw=0.8, label=f"estimate - truth of {parameter}")
+    ax.axhline(0.0, color="k", lw=0.8)
+    _mark_events(ax, results, scenario)
+    scored = t >= ESTIMATION_START
+    if scored.any():
+        bound = 1.3 * float(np.max(np.abs(error[scored])))
+        ax.set_ylim(-max(bound, 1e-12), max(bound, 1e-12))
+    estimation = (results.get("metrics") or {}).get("estimation")
+    if estimation:
+        ax.set_title(
+            f"Error of the estimate of {parameter}: max {estimation['max']:.3g}, median {estimation['median']:.3g}, "
+            f"RMSE {estimation['rmse']:.3g} {unit} from {ESTIMATION_START:g} s"
+        )
+    else:
+        ax.set_title(f"Error of the estimate of {parameter}")
+    ax.set_xlim(0, float(run.t[-1]))
+    ax.set_xlabel("time the estimate describes (s)")
+    ax.set_ylabel(f"error ({unit})")
+    def percent(error: ArrayLike) -> np.ndarray:
+        return 100 * np.asarray(error) / nominal
+
+    def value(share: ArrayLike) -> np.ndarray:
+        return np.asarray(share) * nominal / 100
+
+    right = ax.secondary_yaxis("right", functions=(percent, value))
+    right.set_ylabel("% of nominal")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8, framealpha=0.85)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+             results: dict | None = None) -> Path:
+    """RUL prediction (points) and interval (shaded) over time vs the true RUL of the profile's trend,
+    with the alpha = 0.2 cone (dashed). The y axis is clipped to [0, 2 x the largest finite true RUL]."""
+    results = chain_results(run, chain, scenario) if results is None else results
+    predictions = results["eol_predictions"]
+    fig, ax = plt.subplots(figsize=(10, 5))
+    end = float(run.t[-1])
+    tt = np.linspace(0.0, end, 2401)
+    top = None
+    if scenario.fault is not None and results["isolated_parameter"] == scenario.fault.parameter:
+        parameter = scenario.fault.parameter
+        true_eol = scenario.fault.profile.trend_end_of_life(tt, truth_limits(scenario, parameter))
+        true_rul = np.where(np.isfinite(true_eol), true_eol - tt, np.nan)
+        # break the line where the true EoL jumps (a new segment)
+        jumps = np.flatnonzero(np.abs(np.diff(np.nan_to_num(true_eol, posinf=1e300))) > 1e-6) + 1
+        true_rul[jumps] = np.nan
+        ax.plot(tt, true_rul, color="k", lw=1.5, label="true RUL (trend of the profile)")
+        ax.plot(tt, (1 - ALPHA) * true_rul, color="k", lw=0.9, ls="--", label=f"alpha = {ALPHA:g} cone")
+        ax.plot(tt, (1 + ALPHA) * true_rul, color="k", lw=0.9, ls="--")
+        if np.isfinite(true_rul).any():
+            top = 2.0 * float(np.nanmax(true_rul))
+    if predictions:
+        t = np.array([p["t"] for p in predictions])
+        rul = np.array([p["rul"] for p in predictions])
+        big = 1e9
+        low = np.array([big if p["rul_low"] is None else p["rul_low"] for p in predictions])
+        high = np.array([big if p["rul_high"] is None else p["rul_high"] for p in predictions])
+        if top is None:
+            top = 2.0 * float(np.percentile(rul, 90)) if np.any(rul > 0) else 1.0
+        # a gap of more than one step between predictions, or a change of parameter, breaks the shading
+        parameters = [p["parameter"] for p in predictions]
+        gaps = np.flatnonzero((np.diff(t) > 1.5 * chain.step_time)
+                              | np.array([a != b for a, b in itertools.pairwise(parameters)], dtype=bool)) + 1
+        for k, part in enumerate(np.split(np.arange(len(t)), gaps)):
+            ax.fill_between(t[part], np.clip(low[part], -top, 10 * top), np.clip(high[part], -top, 10 * top),
+                            color="tab:blue", alpha=0.25, lw=0,
+                            label=f"{chain.config.extrapolation.confidence:.0%} interval" if k == 0 else None)
+        same = np.array([p["parameter"] == results["isolated_parameter"] for p in predictions])
+        ax.plot(t[same], rul[same], ".", color="tab:blue", ms=5, label=f"predicted RUL ({results['isolated_parameter']})")
+        if (~same).any():
+            ax.plot(t[~same], rul[~same], "x", color="0.4", ms=5, label="while another parameter was isolated")
+    if top is None or not math.isfinite(top) or top <= 0:
+        top = 1.0
+    _mark_events(ax, results, scenario)
+    ax.set_ylim(0, top)
+    ax.set_xlim(0, end)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("RUL (s)")
+    ax.set_title("Remaining Useful Life")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+                 results: dict | None = None) -> Path:
+    """Measured vs reference EA of every element per step, and the detection statistics (every element's
+    EA residual and the energy balance's) relative to their thresholds (log scale; the alarm needs one
+    above 1 for ``persistence`` steps)."""
+    results = chain_results(run, chain, scenario) if results is None else results
+    t = run.t
+    elements = chain.monitor.elements
+    n = len(elements)
+    columns = 2
+    rows = (n + columns - 1) // columns
+    fig = plt.figure(figsize=(11, 2.6 * rows + 3.4))
+    grid = fig.add_gridspec(rows + 1, columns, height_ratios=[1.0] * rows + [1.3])
+    ea = np.array([s.ea[0] for s in run.statuses])
+    reference = np.array([s.ea_reference[0] for s in run.statuses])
+    for e, name in enumerate(elements):
+        ax = fig.add_subplot(grid[e // columns, e % columns])
+        ax.plot(t, reference[:, e], color="k", lw=1.0, label="reference")
+        ax.plot(t, ea[:, e], color="tab:blue", lw=1.0, alpha=0.8, label="measured")
+        _mark_events(ax, results, scenario, label=False)
+        ax.set_title(f"EA of {name} per {chain.config.step:g} s step", fontsize=10)
+        ax.set_ylabel("EA (J)")
+        ax.grid(alpha=0.3)
+        if e == 0:
+            ax.legend(loc="upper right", fontsize=8)
+    ax = fig.add_subplot(grid[rows, :])
+    statistic = np.array([np.abs(s.statistic[0]) for s in run.statuses]) / chain.thresholds
+    floor = 1e-3
+    for e, name in enumerate(chain.statistic_names):
+        ax.semilogy(t, np.maximum(statistic[:, e], floor), lw=1.0, label=name)
+    ax.axhline(1.0, color="k", lw=1.4, label="threshold")
+    _mark_events(ax, results, scenario)
+    ax.set_ylim(floor, max(10.0, float(np.nanmax(statistic)) * 2 if statistic.size else 10.0))
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("|relative residual| / threshold")
+    ax.set_title(f"Detection statistic over {chain.config.detector.window:g} s "
+                 f"(alarm after {chain.config.detector.persistence} steps above 1)", fontsize=10)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(loc="upper left", fontsize=8, ncol=len(chain.statistic_names) + 2)
+    fig.tight_layout()
+    return save_figure(fig, path)
+
+
+#: figure name -> the function drawing it
+PLOTS: dict[str, Callable[..., Path]] = {
+    "time_frequency": plot_time_frequency,
+    "estimate": plot_estimate,
+    "estimate_error": plot_estimate_error,
+    "rul": plot_rul,
+    "signals": plot_signals,
+}

@@ -1,0 +1,156 @@
+"""The markdown report of one scenario run through the PHM chain, and the directory of all its outputs.
+
+:func:`write_phm_outputs` writes the figures of :data:`~ea_gym.reporting.figures.FIGURES`,
+``report.md`` and ``results.json`` into one directory so that nothing is left half-written when
+something fails.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from ea_gym.files import write_json, write_text
+from ea_gym.phm import ChainRun, PHMChain
+from ea_gym.reporting.figures import FIGURES, PLOTS
+from ea_gym.reporting.results import ALPHA, LAMBDA, chain_results
+from ea_gym.scenario import Scenario
+
+
+def _fmt(value: Any, digits: int = 4) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, bool):
+        return "yes" if value else "no"
+    if isinstance(value, (int, np.integer)):
+        return str(value)
+    if isinstance(value, (float, np.floating)):
+        return f"{float(value):.{digits}g}"
+    return str(value)
+
+
+def _summary_rows(results: dict) -> list[tuple[str, str]]:
+    rows = [
+        ("detection time (s)", _fmt(results.get("detection_time"))),
+        ("isolated parameter", _fmt(results.get("isolated_parameter"))),
+        ("class probabilities (mean since detection)",
+         ", ".join(f"{k}: {v:.3f}" for k, v in results.get("class_probabilities", {}).items())),
+        ("End-of-Life predictions", str(len(results.get("eol_predictions", [])))),
+    ]
+    metrics = results.get("metrics")
+    if not metrics:
+        return rows
+    rows += [
+        ("fault parameter", _fmt(metrics.get("fault_parameter"))),
+        ("fault onset (s)", _fmt(metrics.get("fault_onset"))),
+        ("detection delay (s)", _fmt(metrics.get("detection_delay"))),
+        ("isolation correct", _fmt(metrics.get("isolation_correct"))),
+    ]
+    estimation = metrics.get("estimation")
+    if estimation:
+        window = estimation["window"]
+        rows.append((
+            f"estimation error, {window[0]:.4g}-{window[1]:.4g} s (max / median / RMSE)",
+            (f"{estimation['max']:.4g} / {estimation['median']:.4g} / {estimation['rmse']:.4g} "
+            f"({100 * estimation['relative_to_nominal']['max']:.2f} / {100 * estimation['relative_to_nominal']['median']:.2f} / "
+            f"{100 * estimation['relative_to_nominal']['rmse']:.2f} % of nominal)"),
+        ))
+    if "predictions_without_true_eol" in metrics:
+        rows.append(("finite predictions where the true trend is flat", str(metrics["predictions_without_true_eol"])))
+    return rows
+
+
+def _phase_table(phases: list[dict]) -> list[str]:
+    if not phases:
+        return ["No phase of the profile had enough End-of-Life predictions to score."]
+    lines = [
+        ("| phase (s) | limit | true EoL (s) | predictions | median predicted EoL (s) | EoL error min / median / max (s) "
+        "| alpha-lambda (t, passed) | PH (s) | RA | CRA | RUL RMSE (s) |"),
+        "|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for p in phases:
+        start, end = p["segment"]
+        prognostics = p["prognostics"]
+        if "error" in prognostics:
+            saxena = f"| {prognostics['error']} | - | - | - | - |"
+        else:
+            al = prognostics["alpha_lambda"]
+            saxena = (
+                f"| {al['t_prediction']:.4g} s, {_fmt(al['passed'])} | {_fmt(prognostics['prognostic_horizon'])} "
+                f"| {_fmt(prognostics['relative_accuracy'], 3)} | {_fmt(prognostics['cumulative_relative_accuracy'], 3)} "
+                f"| {_fmt(prognostics['rul_errors']['rmse'])} |"
+            )
+        error = p["eol_error"]
+        lines.append(
+            f"| {start:g}-{_fmt(end)} | {p['limit']} | {p['true_eol']:.4g} | {p['n_predictions']} "
+            f"({p['prediction_times'][0]:g}-{p['prediction_times'][1]:g} s) | {p['predicted_eol']['median']:.4g} "
+            f"| {error['min']:.3g} / {error['median']:.3g} / {error['max']:.3g} " + saxena
+        )
+    return lines
+
+
+def _report_text(out: Path, results: dict, figures: dict[str, Path], title: str, sections: list[str] | None) -> str:
+    lines = [f"# {title}", "", "## Summary", "", "| quantity | value |", "|---|---|"]
+    lines += [f"| {name} | {value} |" for name, value in _summary_rows(results)]
+    metrics = results.get("metrics") or {}
+    if "eol_phases" in metrics:
+        lines += [
+            "",
+            "## End of Life per phase of the fault profile",
+            "",
+            ("True EoL: where the profile's current segment, extended, reaches the safe limit it heads for. "
+            f"EoL error = predicted - true. Saxena et al. (2010) metrics on the RUL of the phase's predictions, "
+            f"alpha = {ALPHA:g}, lambda = {LAMBDA:g}; PH uses the absolute cone alpha x EoL."),
+            "",
+            *_phase_table(metrics["eol_phases"]),
+        ]
+    if figures:
+        lines += ["", "## Figures", ""]
+        for name, path in figures.items():
+            caption = FIGURES.get(name, (None, name))[1]
+            relative = Path(os.path.relpath(Path(path), out)).as_posix()
+            lines += [f"### {caption}", "", f"![{caption}]({relative})", ""]
+    for section in sections or []:
+        lines += ["", section.rstrip(), ""]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def write_phm_report(out: Path, results: dict, figures: dict[str, Path], title: str,
+                     sections: list[str] | None = None) -> Path:
+    """Write ``out/report.md`` atomically: summary table, per-phase End-of-Life table, the figures
+    (linked relative to ``out``) and the extra markdown ``sections``."""
+    out = Path(out)
+    return write_text(out / "report.md", _report_text(out, results, figures, title, sections))
+
+
+def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scenario, title: str,
+                      sections: list[str] | None = None) -> dict:
+    """Results, figures and report of a run in ``out``: ``results.json``, ``report.md`` and the PNGs of
+    :data:`FIGURES`.
+
+    Everything is drawn in a temporary directory beside ``out`` and moved in only when all of it
+    succeeded; ``results.json`` is written last, so its presence means the directory is complete.
+    Returns the results.
+    """
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    results = chain_results(run, chain, scenario)
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        figures = {}
+        for name, plot in PLOTS.items():
+            figures[name] = plot(run, chain, scenario, staging / FIGURES[name][0], results=results)
+        write_phm_report(staging, results, figures, title, sections)
+        out.mkdir(parents=True, exist_ok=True)
+        (out / "results.json").unlink(missing_ok=True)  # the directory is incomplete until it is back
+        for path in sorted(staging.iterdir()):
+            os.replace(path, out / path.name)
+        write_json(out / "results.json", results)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+    return results
