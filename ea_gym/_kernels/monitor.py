@@ -29,7 +29,7 @@ def same(a: np.ndarray, b: np.ndarray, start: int) -> bool:
 
 
 @numba.njit(cache=True)
-def load_sources(rows, channel, skip):
+def load_sources(rows: np.ndarray, channel: int, skip: int) -> tuple[np.ndarray, np.ndarray]:
     """For each row, the first row whose ``channel`` equals its own from ``skip`` on (itself if none
     does), and the distinct rows: the rows before it and, in a batch of real then reference rows,
     its twin half a batch before are compared, which is where the load repeats."""
@@ -51,7 +51,11 @@ def load_sources(rows, channel, skip):
 
 
 @numba.njit(cache=True)
-def smooth_rows(rows, skip, cut, moments, smoother, differentiator, inertia, smooth, slope):
+def smooth_rows(
+    rows: np.ndarray, skip: int, cut: int, moments: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    smoother: tuple[np.ndarray, np.ndarray, np.ndarray], differentiator: tuple[np.ndarray, np.ndarray, np.ndarray],
+    inertia: np.ndarray, smooth: np.ndarray, slope: np.ndarray,
+) -> None:
     """The filters on rows (M, nx + 1, T): every signal filtered from sample ``skip`` on, outputs from ``cut`` on.
 
     Args:
@@ -98,7 +102,10 @@ def smooth_rows(rows, skip, cut, moments, smoother, differentiator, inertia, smo
 
 
 @numba.njit(cache=True)
-def element_powers(smooth, slope, scale, Cy, Dy, effort, flow, sign, inertia, power):
+def element_powers(
+    smooth: np.ndarray, slope: np.ndarray, scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray,
+    effort: np.ndarray, flow: np.ndarray, sign: np.ndarray, inertia: np.ndarray, power: np.ndarray,
+) -> None:
     """Nominal-law power (M, E, L) of every monitored element, written to ``power``, in W.
 
     An I element's is I0 f df/dt from its own flow and derivative ``slope`` (M, n_I, L); the others'
@@ -136,7 +143,10 @@ def element_powers(smooth, slope, scale, Cy, Dy, effort, flow, sign, inertia, po
 
 
 @numba.njit(cache=True)
-def chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, sources, inertia):
+def chunk_statistics(
+    power: np.ndarray, smooth: np.ndarray, raw: np.ndarray, h: float, n_sub: int, n_balance: int,
+    components: np.ndarray, sources: np.ndarray, inertia: np.ndarray,
+) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``ea_gym.diagnosis.monitor.Monitor.update``'s per-chunk outputs from the powers and smoothed signals of N real then N reference rows.
 
     Args:
@@ -149,15 +159,23 @@ def chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, source
         finite (whether every power is finite), EA (2N, E, n_sub) in J, balance residual (N, n_balances)
         in J, gram (N, n_balances, C, C) and cross (N, n_balances, C) in J^2, noise sums (N, 2, nx).
     """
+    finite, ea, energy = sub_window_energies(power, smooth, h, n_sub, inertia)
+    residual, gram, cross = balance_statistics(energy, energy_balances(energy, components, sources), components, n_balance)
+    return finite, ea, residual, gram, cross, noise_sums(raw, smooth)
+
+
+@numba.njit(cache=True)
+def sub_window_energies(
+    power: np.ndarray, smooth: np.ndarray, h: float, n_sub: int, inertia: np.ndarray
+) -> tuple[bool, np.ndarray, np.ndarray]:
+    """Whether every power (M, E, T) in W is finite, and per row, element and sub-window of ``n_sub``
+    intervals its EA (M, E, n_sub) and its signed energy (eq 3), both in J; an I element's energy is
+    the change of its kinetic energy, exact and free of the derivative's noise."""
     M, E, T = power.shape
-    n = M // 2
     subs = (T - 1) // n_sub
-    balances = subs // n_balance
-    C, nx = len(components), raw.shape[1]
     finite = True
     ea = np.empty((M, E, subs))
-    energy = np.empty((M, E, subs))  # signed, eq 3
-    balance = np.empty((M, subs))
+    energy = np.empty((M, E, subs))
     for m in range(M):
         for e in range(E):
             p = power[m, e]
@@ -169,12 +187,20 @@ def chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, source
                 for t in range(s * n_sub, (s + 1) * n_sub):
                     signed += 0.5 * (p[t] + p[t + 1]) * h
                 energy[m, e, s] = signed
-        # an I element's energy is the change of its kinetic energy: exact, free of the derivative's noise
         for k in range(len(inertia)):
             channel, element, half_inertance = int(inertia[k][0]), int(inertia[k][1]), 0.5 * inertia[k][2]
             f = smooth[m, channel]
             for s in range(subs):
                 energy[m, element, s] = half_inertance * (f[(s + 1) * n_sub] ** 2 - f[s * n_sub] ** 2)
+    return finite, ea, energy
+
+
+@numba.njit(cache=True)
+def energy_balances(energy: np.ndarray, components: np.ndarray, sources: np.ndarray) -> np.ndarray:
+    """Per row and sub-window, the energy the sources deliver less the energy the components absorb (J), (M, subs)."""
+    M, _, subs = energy.shape
+    balance = np.empty((M, subs))
+    for m in range(M):
         for s in range(subs):
             delivered = 0.0
             for k in sources:
@@ -183,11 +209,23 @@ def chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, source
             for k in components:
                 absorbed += energy[m, k, s]
             balance[m, s] = delivered - absorbed
+    return balance
+
+
+@numba.njit(cache=True)
+def balance_statistics(
+    energy: np.ndarray, balance: np.ndarray, components: np.ndarray, n_balance: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per system and balance window of ``n_balance`` sub-windows: the residual R of the energy balance,
+    real (the first N rows) less reference (the last N), in J, and E_i E_j, E_i R in J^2 with E_i the
+    energy component i absorbs: (N, n_balances), (N, n_balances, C, C), (N, n_balances, C)."""
+    n = len(balance) // 2
+    balances = balance.shape[1] // n_balance
+    C = len(components)
     residual = np.zeros((n, balances))
     gram = np.empty((n, balances, C, C))
     cross = np.empty((n, balances, C))
     stored = np.empty(C)
-    noise = np.empty((n, 2, nx))
     for m in range(n):
         for b in range(balances):
             for s in range(b * n_balance, (b + 1) * n_balance):
@@ -200,17 +238,27 @@ def chunk_statistics(power, smooth, raw, h, n_sub, n_balance, components, source
                 for j in range(C):
                     gram[m, b, i, j] = stored[i] * stored[j]
                 cross[m, b, i] = stored[i] * residual[m, b]
-        for c in range(nx):
-            error, power_sum = 0.0, 0.0  # in registers: the array entries would be reloaded at every sample
-            for t in range(raw.shape[2]):
-                error += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
-                power_sum += raw[m, c, t] ** 2
-            noise[m, 0, c], noise[m, 1, c] = error, power_sum
-    return finite, ea, residual, gram, cross, noise
+    return residual, gram, cross
 
 
 @numba.njit(cache=True)
-def padded_chunk(measured, reference, load, context, padded):
+def noise_sums(raw: np.ndarray, smooth: np.ndarray) -> np.ndarray:
+    """Per system and measured signal, sum (raw - smoothed)^2 and sum raw^2 over the chunk, (N, 2, nx);
+    ``raw`` (N, nx, L) follows the chunk's first sample, ``smooth`` (2N, nx + 1, L + 1) includes it."""
+    n, nx, L = raw.shape
+    noise = np.empty((n, 2, nx))
+    for m in range(n):
+        for c in range(nx):
+            error, power_sum = 0.0, 0.0  # in registers: the array entries would be reloaded at every sample
+            for t in range(L):
+                error += (raw[m, c, t] - smooth[m, c, t + 1]) ** 2
+                power_sum += raw[m, c, t] ** 2
+            noise[m, 0, c], noise[m, 1, c] = error, power_sum
+    return noise
+
+
+@numba.njit(cache=True)
+def padded_chunk(measured: np.ndarray, reference: np.ndarray, load: np.ndarray, context: np.ndarray, padded: np.ndarray) -> None:
     """Real then reference rows (2N, nx + 1, H + L + 1) with the load as last channel, written to
     ``padded``, each led by its H samples of smoothing context: ``context`` (2N, nx + 1, H), or where it
     is NaN the chunk mirrored about its first sample. ``context`` becomes the next chunk's."""

@@ -59,7 +59,7 @@ def combine(polynomial: np.ndarray, moments: np.ndarray, y: np.ndarray) -> None:
 
 
 @numba.njit(cache=True, inline="always")
-def direct(M, x, powers):
+def direct(M: np.ndarray, x: np.ndarray, powers: np.ndarray) -> None:
     """Moments M (4, B) of the window x (window, B) summed sample by sample, all four in one loop over the lanes."""
     M[:] = 0.0
     for k in range(len(x)):
@@ -73,7 +73,7 @@ def direct(M, x, powers):
 
 
 @numba.njit(cache=True, inline="always")
-def advance(M, leaving, entering, drop, add, shift):
+def advance(M: np.ndarray, leaving: np.ndarray, entering: np.ndarray, drop: np.ndarray, add: np.ndarray, shift: np.ndarray) -> None:
     """Moments M (4, B) of each lane's window moved one sample on: ``leaving`` (B,) drops out, ``entering`` comes in.
 
     The window's moments about its old centre, less the leaving and plus the entering sample, are
@@ -96,7 +96,9 @@ def advance(M, leaving, entering, drop, add, shift):
 
 
 @numba.njit(cache=True, inline="always")
-def edges(M, lowest, smoother, differentiator, derivative, smooth, slope):
+def edges(
+    M: np.ndarray, lowest: int, smoother: np.ndarray, differentiator: np.ndarray, derivative: bool, smooth: np.ndarray, slope: np.ndarray
+) -> None:
     """Edge outputs i >= ``lowest`` from their window's moments M (4, B), written to row i."""
     for i in range(lowest, len(smoother)):
         combine(smoother[i], M, smooth[i])
@@ -105,7 +107,11 @@ def edges(M, lowest, smoother, differentiator, derivative, smooth, slope):
 
 
 @numba.njit(cache=True)
-def filter_lanes(x, first, moments, smoother, differentiator, derivative, smooth, slope):
+def filter_lanes(
+    x: np.ndarray, first: int, moments: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+    smoother: tuple[np.ndarray, np.ndarray, np.ndarray], differentiator: tuple[np.ndarray, np.ndarray, np.ndarray],
+    derivative: bool, smooth: np.ndarray, slope: np.ndarray,
+) -> None:
     """The smoother, and the derivative where ``derivative``, on B signals side by side (the SIMD axis).
 
     Every lane runs the same arithmetic, so a signal's result does not depend on its neighbours.
