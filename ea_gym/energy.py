@@ -8,9 +8,9 @@ time axis last, or a mapping from element name to such arrays.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
-from typing import Literal, TypeVar
+from typing import Literal, TypeVar, overload
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -68,7 +68,14 @@ def constitutive_power(
     raise ValueError(f"kind must be R, C or I for a constitutive power, got {kind.value!r}")
 
 
-def _map(function, signals: Signals, *args) -> Signals:
+@overload
+def _map(function: Callable[..., np.ndarray], signals: np.ndarray, *args: object) -> np.ndarray: ...
+@overload
+def _map(function: Callable[..., np.ndarray], signals: Mapping[str, np.ndarray], *args: object) -> dict[str, np.ndarray]: ...
+def _map(
+    function: Callable[..., np.ndarray], signals: np.ndarray | Mapping[str, np.ndarray], *args: object
+) -> np.ndarray | dict[str, np.ndarray]:
+    """``function`` applied to an array, or to every array of a mapping."""
     if isinstance(signals, Mapping):
         return {name: function(np.asarray(value), *args) for name, value in signals.items()}
     return function(np.asarray(signals), *args)
@@ -167,7 +174,7 @@ def windowed_energy(
     power: Mapping[str, np.ndarray], sample_period: float, window: float, components: Sequence[str]
 ) -> WindowedEnergy:
     """EA per window of every element in ``power`` and EAI over ``components`` (the R, C and I elements)."""
-    ea = energy_activity(power, sample_period, window)
+    ea = dict(energy_activity(power, sample_period, window))
     eai = activity_index({name: ea[name] for name in components})
     n_windows = len(next(iter(ea.values())))
     return WindowedEnergy(window=window, t=np.arange(n_windows) * window, ea=ea, eai=eai)

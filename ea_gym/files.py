@@ -8,12 +8,12 @@ import os
 import tempfile
 from collections.abc import Callable, Mapping
 from pathlib import Path
-from typing import Any
+from typing import Any, SupportsFloat
 
 import numpy as np
 
 
-def write_atomic(path: str | os.PathLike[str], write: Callable[[str], None]) -> Path:
+def write_atomic(path: str | os.PathLike[str], write: Callable[[str], object]) -> Path:
     """Call ``write(temporary_path)`` and move the result onto ``path`` in one rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -52,7 +52,7 @@ def save_figure(figure: Any, path: str | os.PathLike[str], dpi: int = 110) -> Pa
         plt.close(figure)
 
 
-def finite_or_none(value: float) -> float | None:
+def finite_or_none(value: SupportsFloat) -> float | None:
     """``value`` as a float, or None (JSON null) where it is NaN or infinite."""
     number = float(value)
     return number if math.isfinite(number) else None

@@ -122,11 +122,11 @@ class SystemModel:
         for key, value in (parameters or {}).items():
             self.check_value(key, value, f"parameters.{key}")
         for key, bounds in (limits or {}).items():
-            self.check_limits(key, tuple(bounds), f"limits.{key}")
+            self.check_limits(key, bounds, f"limits.{key}")
         return replace(
             self,
             nominal={**self.nominal, **(parameters or {})},
-            safe_limits={**self.safe_limits, **{k: tuple(v) for k, v in (limits or {}).items()}},
+            safe_limits={**self.safe_limits, **{k: (v[0], v[1]) for k, v in (limits or {}).items()}},
         )
 
 

@@ -30,7 +30,7 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal
 
 import numpy as np
 import yaml
@@ -103,7 +103,7 @@ class RandomLoadSpec(_Spec):
         return RandomLoad.draw(self.mean, self.std, self.bandwidth, np.random.default_rng(self.seed))
 
 
-LoadSpec = Annotated[Union[ConstantLoadSpec, SinesLoadSpec, RandomLoadSpec], Field(discriminator="kind")]
+LoadSpec = Annotated[ConstantLoadSpec | SinesLoadSpec | RandomLoadSpec, Field(discriminator="kind")]
 _LOAD_KINDS = ("constant", "sines", "random")
 
 

@@ -7,6 +7,8 @@ generators are passed as the addresses of their state and functions, not unboxed
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Callable
+from typing import Any, cast
 
 import numba
 import numpy as np
@@ -17,8 +19,7 @@ from numba.np.random.distributions import random_standard_normal
 BIT_GENERATOR_TYPE = types.NumPyRandomBitGeneratorType("bit_generator")
 
 
-@intrinsic
-def bit_generator(typingctx, state, next_uint64, next_uint32, next_double):
+def _bit_generator_typing(typingctx: Any, state: Any, next_uint64: Any, next_uint32: Any, next_double: Any) -> tuple[Any, Any]:
     """numba's view of a numpy bit generator from the addresses of its state and functions: what
     passing the Generator itself gives, without unboxing it from Python at every call."""
 
@@ -28,6 +29,11 @@ def bit_generator(typingctx, state, next_uint64, next_uint32, next_double):
         return proxy._getvalue()
 
     return BIT_GENERATOR_TYPE(types.uintp, types.uintp, types.uintp, types.uintp), codegen
+
+
+#: ``bit_generator(state, next_uint64, next_uint32, next_double)`` in compiled code: numba passes the
+#: typing context itself, so the intrinsic's callers see this signature, not its definition's.
+bit_generator = cast("Callable[[int, int, int, int], Any]", intrinsic(_bit_generator_typing))
 
 
 def bit_generator_addresses(rng: np.random.Generator) -> tuple[int, int, int, int]:

@@ -108,7 +108,8 @@ class FaultClassifier:
                 accuracy = float((self.network(xv).argmax(1) == yv).double().mean())
             if accuracy > best:
                 best, best_state = accuracy, {k: v.clone() for k, v in self.network.state_dict().items()}
-        self.network.load_state_dict(best_state)
+        if best_state is not None:  # None only after no epoch
+            self.network.load_state_dict(best_state)
         return {"validation_accuracy": best, "final_loss": float(loss.detach())}
 
     def predict_proba(self, features: np.ndarray) -> np.ndarray:

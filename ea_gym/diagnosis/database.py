@@ -117,12 +117,12 @@ def build_database(
     n = len(runs)
     theta = np.repeat(nominal[None], n, axis=0)
     magnitude = np.zeros(n)
-    for i, (label, name, value, _, _) in enumerate(runs):
-        if label == 0:
+    for i, (label, parameter, value, _, _) in enumerate(runs):
+        if label == 0 or parameter is None:  # fault-free (a nominal value or no fault)
             continue
-        j = model.parameter_names.index(name)
+        j = model.parameter_names.index(parameter)
         theta[i, j] = value
-        lower, upper = model.safe_limits[name]
+        lower, upper = model.safe_limits[parameter]
         magnitude[i] = (value - nominal[j]) / ((lower if value < nominal[j] else upper) - nominal[j])
 
     h = 1.0 / config.sample_rate
@@ -139,12 +139,12 @@ def build_database(
     monitor = Monitor(model, h, monitor_config, n_systems=n)
     measured = np.einsum("nij,ntj->nit", monitor.measurement_matrix(theta), plant)
     expected = np.einsum("ij,ntj->nit", monitor.measurement_matrix(nominal), reference)[load_index]
-    noise = np.array([r[4] for r in runs])
+    noise_std = np.array([r[4] for r in runs])  # relative to each signal's RMS
     chunk = int(round(config.chunk * config.sample_rate))
     windows: list[MonitorWindow] = []
     for start in range(0, len(t) - 1, chunk):
         part = slice(start, start + chunk + 1)
-        noisy = add_sensor_noise(measured[..., part], noise[:, None, None], rng)
+        noisy = add_sensor_noise(measured[..., part], noise_std[:, None, None], rng)
         windows.append(monitor.update(noisy, expected[..., part], u[:, part, 0]))
 
     per_frame = int(round(config.frame / config.chunk))
@@ -164,7 +164,7 @@ def build_database(
         features=features,
         labels=np.tile([r[0] for r in runs], repeat),
         magnitude=np.tile(magnitude, repeat),
-        noise=np.tile(noise, repeat),
+        noise=np.tile(noise_std, repeat),
         run=np.tile(np.arange(n), repeat),
         split=np.tile(split, repeat),
     )

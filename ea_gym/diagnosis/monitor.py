@@ -18,6 +18,7 @@ Everything is batched over N systems; time is the last axis.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +74,11 @@ class MonitorWindow:
     balance: np.ndarray
     signals: np.ndarray
     noise: np.ndarray
+
+
+def _total(arrays: Iterable[np.ndarray]) -> np.ndarray:
+    """The arrays summed in order (``sum``'s arithmetic: 0.0 plus the first, then the others)."""
+    return np.asarray(sum(arrays, 0.0))
 
 
 class Monitor:
@@ -233,9 +239,9 @@ class Monitor:
         return self.frame_of(
             np.concatenate([w.ea for w in windows], axis=-1),
             np.concatenate([w.ea_reference for w in windows], axis=-1),
-            sum(w.gram.sum(axis=1) for w in windows),
-            sum(w.cross.sum(axis=1) for w in windows),
-            sum(w.noise for w in windows),
+            _total(w.gram.sum(axis=1) for w in windows),
+            _total(w.cross.sum(axis=1) for w in windows),
+            _total(w.noise for w in windows),
         )
 
     def frame_of(self, ea: np.ndarray, ea_reference: np.ndarray, gram: np.ndarray, cross: np.ndarray, noise: np.ndarray) -> Frame:

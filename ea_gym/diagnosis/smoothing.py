@@ -34,22 +34,24 @@ class SavitzkyGolay:
         sample_period: seconds between samples (scales the derivative).
     """
 
-    def __init__(self, window: int, polyorder: int, sample_period: float):
+    def __init__(self, window: int, polyorder: int, sample_period: float) -> None:
         if window % 2 == 0 or window <= polyorder:
             raise ValueError(f"window must be odd and above polyorder, got window={window}, polyorder={polyorder}")
         self.window = window
         self.polyorder = polyorder
         self.half = window // 2
-        self._coefficients = {}
-        self._polynomial = {}
+        Coefficients = tuple[np.ndarray, np.ndarray, np.ndarray]
+        self._coefficients: dict[int, Coefficients] = {}
+        self._polynomial: dict[int, Coefficients] = {}
         # tap offsets scaled to [-1, 1]: the moments of all orders keep the signal's magnitude
         scaled = np.arange(-self.half, self.half + 1) / max(self.half, 1)
         orders = np.arange(MOMENTS)
         powers = scaled[None, :] ** orders[:, None]
         step = 1.0 / max(self.half, 1)
+        below = orders[:, None] - orders[None, :]  # binomial re-centring: order i takes the orders j <= i
         self._moments = (
             powers,
-            comb(orders[:, None], orders[None, :]) * (-step) ** np.maximum(orders[:, None] - orders[None, :], 0) * (orders[:, None] >= orders[None, :]),
+            comb(orders[:, None], orders[None, :]) * (-step) ** np.maximum(below, 0) * (below >= 0),
             (-1.0) ** orders,
             (1.0 + step) ** orders,
         )
@@ -62,9 +64,10 @@ class SavitzkyGolay:
             self._coefficients[deriv] = (interior, head, tail)
             # exact up to polyorder 3: the interior coefficients are a polynomial of order polyorder in
             # the offset, and the edge outputs depend on their window through its moments only
-            self._polynomial[deriv] = tuple(
+            on_head, on_tail, on_interior = (
                 np.ascontiguousarray(np.linalg.lstsq(powers.T, rows.T, rcond=None)[0].T) for rows in (head, tail, interior)
             )
+            self._polynomial[deriv] = (on_head, on_tail, on_interior)
 
     def coefficients(self, deriv: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(interior, head, tail) of ``filter_into`` for the smoother (0) or the derivative (1)."""
