@@ -118,15 +118,15 @@ def jacobian_times(X: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, out: n
 
 
 @numba.njit(cache=True)
-def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np.ndarray, own: int, work: np.ndarray, lanes: int) -> None:
+def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np.ndarray, own: np.ndarray, work: np.ndarray, lanes: int) -> None:
     """Measurement update of a block of filters from y = g x + noise of variances R (nx, B); the
     innovations' log-densities go to work[n + 4] (B,).
 
     The noise is independent across channels, so the channels update in turn, each a scalar update
     linearised at the state the previous ones left (exact where y is linear in the state; for the
     momentum read through 1 / theta, one relinearisation on the way): no matrix inverse, and the
-    log-density is the sum of the channels' conditional ones. ``own``: the state whose gain is
-    1 / theta (-1: none). ``work``: (n + 5, B) scratch: P h, then g, d y / d theta, the innovation,
+    log-density is the sum of the channels' conditional ones. gain: (nx, B) at nominal; own: (B,) the
+    state whose gain is 1 / theta instead (-1: none). ``work``: (n + 5, B) scratch: P h, then g, d y / d theta, the innovation,
     its variance and the log-density.
     """
     n = Z.shape[0]
@@ -136,9 +136,9 @@ def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np
         work[L, b] = 0.0
     for i in range(nx):
         for b in range(lanes):
-            g = 1.0 / Z[nx, b] if i == own else gain[i]
+            g = 1.0 / Z[nx, b] if i == own[b] else gain[i, b]
             work[G, b] = g
-            work[D, b] = -Z[i, b] * g * g if i == own else 0.0
+            work[D, b] = -Z[i, b] * g * g if i == own[b] else 0.0
             work[V, b] = Y[i, b] - g * Z[i, b]
         for a in range(n):
             for b in range(lanes):
@@ -176,6 +176,8 @@ def track(
 ) -> None:
     """Run every hypothesis's filter of the listed systems over samples 1..L of their step (in place).
 
+    The S x H filters run LANES at a time, filter (s, f) in lane s H + f of the list.
+
     Args:
         coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma] per hypothesis; terms (H,): how many are used.
         lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``correct``.
@@ -186,66 +188,80 @@ def track(
         measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
         z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
     """
-    S = systems.shape[0]
-    B = max(1, min(LANES, S))
-    W = np.empty((measured.shape[2], 4, B))  # the input's coefficients per interval, shared by the hypotheses
-    for s0 in range(0, S, B):
-        lanes = min(B, S - s0)
+    n_filters = systems.shape[0] * coefficients.shape[0]
+    B = max(1, min(LANES, n_filters))
+    nx = measured.shape[1]
+    n = nx + 2
+    cols = coefficients.shape[3]
+    # the block's copies, lanes last
+    Z, PP, Q = np.empty((n, B)), np.empty((n, n, B)), np.zeros((n, B))
+    M0, dM = np.empty((nx, cols, B)), np.empty((nx, cols, B))
+    G, R, bounds, anchor, own_lane = np.empty((nx, B)), np.empty((nx, B)), np.empty((2, B)), np.empty(B), np.empty(B, dtype=np.int64)
+    value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[1]))
+    for first in range(0, n_filters, B):
+        lanes = min(B, n_filters - first)
         for b in range(lanes):
-            s = s0 + b
+            s, f = divmod(first + b, coefficients.shape[0])
+            row = systems[s]
+            Z[:, b] = z[row, f]
+            PP[:, :, b] = P[row, f]
+            # the interpolant at the step's first theta, carried to each sample's theta by its slope:
+            # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
+            anchor[b] = z[row, f, nx]
+            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], anchor[b], value, slope, basis)
+            M0[:, :, b] = value
+            dM[:, :, b] = slope
+            G[:, b] = gain[f]
+            R[:, b] = variance[s]
+            own_lane[b] = own[f]
+            bounds[0, b], bounds[1, b] = lo[f], hi[f]
+            Q[nx, b], Q[nx + 1, b] = q[f, 0], q[f, 1]
+        density = track_block(
+            Z, PP, Q, M0, dM, anchor, G, own_lane, R, bounds, state_noise, h, first, coefficients.shape[0], measured, load, load_rate, lanes
+        )
+        for b in range(lanes):
+            s, f = divmod(first + b, coefficients.shape[0])
+            row = systems[s]
+            z[row, f] = Z[:, b]
+            P[row, f] = PP[:, :, b]
+            likelihood = log_likelihood[row, f]
             for k in range(1, measured.shape[2]):
-                hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, W[k, :, b])
-        block = slice(s0, s0 + lanes)
-        for f in range(coefficients.shape[0]):
-            track_block(
-                coefficients[f], terms[f], lo[f], hi[f], gain[f], own[f], q[f], state_noise, forget, h,
-                systems[block], measured[block], variance[block], W, z[:, f], P[:, f], log_likelihood[:, f],
-            )
+                likelihood = forget * likelihood + density[k, b]
+            log_likelihood[row, f] = likelihood
 
 
 @numba.njit(cache=True)
 def track_block(
-    coefficients: np.ndarray, terms: int, lo: float, hi: float, gain: np.ndarray, own: int, q: np.ndarray, state_noise: float, forget: float,
-    h: float, systems: np.ndarray, measured: np.ndarray, variance: np.ndarray, W: np.ndarray, z: np.ndarray, P: np.ndarray,
-    log_likelihood: np.ndarray,
-) -> None:
-    """One hypothesis's filters of a block of systems, one a lane, over the step: ``track``'s arguments for that hypothesis."""
-    lanes, B = systems.shape[0], W.shape[2]
-    nx = measured.shape[1]
-    n = nx + 2
-    cols = coefficients.shape[2]
-    Z, PP = np.empty((n, B)), np.empty((n, n, B))
-    M, M0, dM = np.empty((nx, cols, B)), np.empty((nx, cols, B)), np.empty((nx, cols, B))
-    value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[0]))
-    Q, R, Y, anchor = np.zeros((n, B)), np.empty((nx, B)), np.empty((nx, B)), np.empty(B)
+    Z: np.ndarray, P: np.ndarray, Q: np.ndarray, M0: np.ndarray, dM: np.ndarray, anchor: np.ndarray, G: np.ndarray, own: np.ndarray,
+    R: np.ndarray, bounds: np.ndarray, state_noise: float, h: float, first: int, n_hyp: int,
+    measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, lanes: int,
+) -> np.ndarray:
+    """A block of filters (lanes last; lane b is filter first + b of ``track``'s list) over the step, in place.
+
+    Returns each sample's innovation log-density per lane, (L + 1, B) (row 0 unused).
+    """
+    n, B = Z.shape
+    nx = n - 2
+    cols = M0.shape[1]
+    M, W, Y = np.empty((nx, cols, B)), np.empty((4, B)), np.empty((nx, B))
     F, T, work = np.empty((nx, 2, B)), np.empty((n, n, B)), np.empty((n + 5, B))
-    for b in range(lanes):
-        row = systems[b]
-        Z[:, b] = z[row]
-        PP[:, :, b] = P[row]
-        anchor[b] = z[row, nx]
-        # the interpolant at the step's first theta, carried to each sample's theta by its slope:
-        # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
-        chebyshev_matrices(coefficients, terms, lo, hi, anchor[b], value, slope, basis)
-        M0[:, :, b] = value
-        dM[:, :, b] = slope
-        R[:, b] = variance[b]
-        Q[nx, b], Q[nx + 1, b] = q[0], q[1]
+    density = np.zeros((measured.shape[2], B))
     for k in range(1, measured.shape[2]):
-        for i in range(nx):
-            for b in range(lanes):
-                g = 1.0 / Z[nx, b] if i == own else gain[i]
+        for b in range(lanes):
+            s = (first + b) // n_hyp
+            hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, W[:, b])
+            for i in range(nx):
+                g = 1.0 / Z[nx, b] if i == own[b] else G[i, b]
                 Q[i, b] = state_noise * R[i, b] / (g * g)
-                Y[i, b] = measured[b, i, k]
+                Y[i, b] = measured[s, i, k]
+        for i in range(nx):
             for j in range(cols):
                 for b in range(lanes):
                     M[i, j, b] = M0[i, j, b] + dM[i, j, b] * (Z[nx, b] - anchor[b])
-        predict(Z, PP, M, dM, W[k], h, Q, F, T, lanes)
-        correct(Z, PP, Y, R, gain, own, work, lanes)
+        predict(Z, P, M, dM, W, h, Q, F, T, lanes)
+        correct(Z, P, Y, R, G, own, work, lanes)
         for b in range(lanes):
             # theta stays where the model is defined (and positive, for a gain 1 / theta)
-            Z[nx, b] = min(hi, max(lo, Z[nx, b]))
-            log_likelihood[systems[b]] = forget * log_likelihood[systems[b]] + work[n + 4, b]
-    for b in range(lanes):
-        z[systems[b]] = Z[:, b]
-        P[systems[b]] = PP[:, :, b]
+            Z[nx, b] = min(bounds[1, b], max(bounds[0, b], Z[nx, b]))
+            density[k, b] = work[n + 4, b]
+    return density
