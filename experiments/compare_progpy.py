@@ -50,7 +50,8 @@ from ea_gym.energy import window_samples
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import estimation_errors
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for
+from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm.estimation import ESTIMATORS
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import add_sensor_noise, measure
@@ -79,6 +80,7 @@ class Signals:
 
     Attributes:
         t: sample times (s), (T + 1,).
+        clean: the plant's measured signals before noise, (2, T + 1).
         windows: noisy measured signals (velocity of the mass m/s, displacement of the spring m) of
             every step, (steps, 2, step + 1); step k spans samples k step .. (k + 1) step, and its last
             sample is drawn again (fresh noise) as the next step's first.
@@ -89,6 +91,7 @@ class Signals:
     """
 
     t: np.ndarray
+    clean: np.ndarray
     windows: np.ndarray
     expected: np.ndarray
     load: np.ndarray
@@ -110,7 +113,7 @@ def record_signals(scenario: Scenario, rng: np.random.Generator) -> Signals:
     expected = measure(monitor, model.parameter_vector()[None], reference.states[None], 0.0, rng)[0]
     step = window_samples(STEP, 1.0 / scenario.sample_rate)
     windows = [add_sensor_noise(clean[:, start : start + step + 1], scenario.noise, rng) for start in range(0, len(t) - step, step)]
-    return Signals(t, np.stack(windows), expected, load.value(t), load.derivative(t), plant.parameters, step)
+    return Signals(t, clean, np.stack(windows), expected, load.value(t), load.derivative(t), plant.parameters, step)
 
 
 def with_seed(scenario: Scenario, seed: int) -> Scenario:
@@ -213,34 +216,29 @@ class Track:
 
 
 def run_chain(chain: PHMChain, signals: Signals, parameter: str) -> Track:
-    """The recorded signals step by step through ``chain`` (N = 1, reset first)."""
-    chain.reset()
-    step, column = signals.step, chain.degradable.index(parameter)
-    t, estimate, isolated, rul = [], [], [], []
-    for k, noisy in enumerate(signals.windows):
-        part = slice(k * step, (k + 1) * step + 1)
-        status = chain.update(noisy[None], signals.expected[None, :, part], signals.load[None, part], signals.load_rate[None, part])
-        t.append(status.t[0])
-        estimate.append(status.estimates[0, column])
-        isolated.append(chain.classes[status.isolated[0]] if status.isolated[0] > 0 else "")
-        rul.append(status.rul[0])
-    t_array = np.array(t)
-    return Track(t_array, np.array(estimate), t_array - chain.estimate_lag, tuple(isolated), np.array(rul))
+    """The recorded signals through ``chain`` (``run_signals``, N = 1): each step gets the noisy chunk the UKF saw."""
+    recorded = iter(signals.windows[:, None])
+    statuses = run_signals(
+        chain, signals.clean[None], signals.load[None], signals.load_rate[None], signals.expected[None], noise=lambda chunk: next(recorded)
+    )
+    column = chain.degradable.index(parameter)
+    return Track(
+        t=np.array([status.t[0] for status in statuses]),
+        estimate=np.array([status.estimates[0, column] for status in statuses]),
+        estimate_time=np.array([status.estimation.time[0, column] for status in statuses]),
+        isolated=tuple(chain.classes[status.isolated[0]] if status.isolated[0] > 0 else "" for status in statuses),
+        rul=np.array([status.rul[0] for status in statuses]),
+    )
 
 
 def chain_config(scenario: Scenario, estimator: str | None) -> PHMConfig:
-    """The chain's settings at the scenario's noise, with ``estimator`` where this ea-gym can choose one."""
+    """The chain's settings at the scenario's noise, with the ``estimator`` kind (None: the default)."""
     config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
-    if estimator is None or not isinstance(config.estimator, str):
-        if estimator not in (None, "ea_inversion"):
-            raise SystemExit(f"compare_progpy: --estimator {estimator!r}: this ea-gym's PHMConfig has one estimator, ea_inversion")
-        return config
-    return replace(config, estimator=estimator)  # type: ignore[arg-type]  # a name, where PHMConfig takes one
+    return config if estimator is None else replace(config, estimator_kind=estimator)
 
 
 def estimator_label(estimator: str | None) -> str:
-    default = PHMConfig().estimator
-    return estimator or (default if isinstance(default, str) else "ea_inversion")
+    return estimator or PHMConfig().estimator_kind
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -554,8 +552,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--scenarios", nargs="+", choices=NAMES, default=list(NAMES), help="which ramps (default all three)")
     parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4], help="seeds i: sensors.seed + 100 i (default 0..4)")
-    parser.add_argument("--estimator", action="append", default=None,
-                        help="the chain's estimator, passed into PHMConfig where it takes one (repeat for several; default: its default)")
+    parser.add_argument("--estimator", action="append", default=None, choices=sorted(ESTIMATORS),
+                        help="the chain's estimator, PHMConfig.estimator_kind (repeat for several; default: PHMConfig's default)")
     parser.add_argument("--ukf-rate", type=float, default=None, help="UKF steps per s (Hz), a divisor of the sample rate (default: the sample rate)")
     parser.add_argument("--drift-noise", type=float, default=None, help="the UKF's drift noise, not tuned (default: tuned on seeds 10..12)")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "compare_progpy", help="output folder")
