@@ -10,12 +10,15 @@ import pytest
 from numpy.polynomial import chebyshev
 from scipy.stats import norm
 
+from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.loads import Sine, SinesLoad
 from ea_gym.models import get_model, spring_mass_damper
+from ea_gym.phm.config import PHMConfig
+from ea_gym.phm.estimation import ParameterEstimator, StepSignals
 from ea_gym.plant import run_model
 from ea_gym.sensors import measure
-from ea_gym.tracking import StepSignals, TrackingConfig, TrackingEstimator, drift_end_of_life
+from ea_gym.tracking import TrackingConfig, TrackingEstimator, drift_end_of_life
 
 RATE = 100.0
 
@@ -112,12 +115,10 @@ def run_estimator(model, steps, config: TrackingConfig):
 
 def test_noise_free_run_recovers_a_constant_parameter() -> None:
     model = spring_mass_damper()
-    k = model.parameter_names.index("k")
     theta = model.parameter_vector({"k": 95.0})
     model, steps = plant_steps(lambda t: np.broadcast_to(theta, t.shape + theta.shape), 30.0)
-    _, out = run_estimator(model, steps, replace(TrackingConfig(), theta_prior=0.1))
-    j = 1  # degradable order m, k, b
-    assert k == 1
+    est, out = run_estimator(model, steps, replace(TrackingConfig(), theta_prior=0.1))
+    j = est.degradable.index("k")
     assert abs(out.value[0, j] - 95.0) < 0.01
     assert abs(out.drift[0, j]) < 1e-3
     assert np.argmax(out.log_evidence[0]) == j + 1
@@ -140,31 +141,41 @@ def test_noise_free_run_recovers_a_ramp_slope() -> None:
 
     def parameters(t: np.ndarray) -> np.ndarray:
         theta = np.repeat(model.parameter_vector()[None], len(t), 0)
-        theta[:, 1] = 100.0 - 0.2 * np.clip(t - 10.0, 0.0, None)
+        theta[:, model.parameter_names.index("k")] = 100.0 - 0.2 * np.clip(t - 10.0, 0.0, None)
         return theta
 
     model, steps = plant_steps(parameters, 60.0)
-    _, out = run_estimator(model, steps, TrackingConfig())
-    assert out.drift[0, 1] == pytest.approx(-0.2, rel=0.02)
-    assert out.value[0, 1] == pytest.approx(90.0, abs=0.05)
+    est, out = run_estimator(model, steps, TrackingConfig())
+    j = est.degradable.index("k")
+    assert out.drift[0, j] == pytest.approx(-0.2, rel=0.02)
+    assert out.value[0, j] == pytest.approx(90.0, abs=0.05)
 
 
 def test_adjustment_and_reset() -> None:
     """A logged adjustment moves its hypothesis's theta by the change; a reset restarts at nominal."""
     model, steps = plant_steps(None, 2.0)
     est = TrackingEstimator(model, RATE, 0.0, 2)
+    k = est.degradable.index("k")
     both = [StepSignals(np.repeat(s.measured, 2, 0), np.repeat(s.load, 2, 0), np.repeat(s.load_rate, 2, 0), np.repeat(s.t, 2)) for s in steps]
     suspects = np.ones((2, 3), dtype=bool)
     before = est.update(both[0], np.array([True, False]), suspects)
-    assert before.estimated.tolist() == [[True] * 3, [False] * 3]
-    est.record_adjustment(np.array([1]), np.array([1]), np.array([-4.0]))
-    np.testing.assert_allclose(est.estimates(both[0].t, suspects).value[1, 1], before.value[1, 1] - 4.0)
+    assert before.estimated.all()  # every filter runs at every step
+    est.record_adjustment(np.array([1]), np.array([k]), np.array([-4.0]))
+    np.testing.assert_allclose(est.estimates(both[0].t).value[1, k], before.value[1, k] - 4.0)
     est.reset(np.array([False, True]))
     after = est.update(both[1], np.zeros(2, dtype=bool), suspects)
-    assert after.value[1, 1] == pytest.approx(100.0, abs=0.01)
-    assert after.estimated.tolist() == [[True] * 3, [False] * 3]
+    assert after.value[1, k] == pytest.approx(100.0, abs=0.01)
     with pytest.raises(ValueError, match="signals.measured"):
         est.update(steps[0], np.zeros(2, dtype=bool), suspects)
+
+
+def test_behind_the_chains_seam() -> None:
+    """The chain's constructor arguments give the chain's sample rate, noise and isolation classes."""
+    model = spring_mass_damper()
+    config = PHMConfig(sample_rate=RATE, noise=0.01)
+    estimator: ParameterEstimator = TrackingEstimator.from_chain(model, Monitor(model, 1 / RATE), config, 3)
+    assert estimator.degradable == classes_of(model)[1:]
+    assert isinstance(estimator, TrackingEstimator) and estimator.noise == 0.01 and estimator.h == 1 / RATE
 
 
 def test_drift_end_of_life_hand_computed() -> None:
