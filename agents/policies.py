@@ -27,11 +27,11 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-__all__ = ["ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand", "wear_fraction"]
+__all__ = ["Policy", "ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand", "wear_fraction"]
 
 
 @dataclass(frozen=True)
@@ -185,6 +185,15 @@ def _starts(episode_start: Any, n: int) -> np.ndarray:
     return starts
 
 
+class Policy(Protocol):
+    """A maintenance policy as the evaluation, the benchmark and the teachers call it: SB3's ``predict``
+    (the rules here, ``agents.training.NormalizedPolicy``, an SB3 model)."""
+
+    def predict(
+        self, observation: Mapping[str, Any], state: Any = None, episode_start: Any = None, deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]: ...
+
+
 class RulePolicy:
     """Base class: SB3-style ``predict`` over single or batched observations."""
 
@@ -223,7 +232,7 @@ class RunToFailure(RulePolicy):
     def __init__(self, env: Any = None):
         pass
 
-    def _act(self, obs, n, state, starts):
+    def _act(self, obs: dict[str, np.ndarray], n: int, state: Any, starts: np.ndarray) -> tuple[np.ndarray, Any]:
         return np.zeros(n, dtype=np.int64), None
 
     def __repr__(self) -> str:
@@ -270,7 +279,7 @@ class Periodic(RulePolicy):
     def reset(self) -> None:
         self._position = None
 
-    def _act(self, obs, n, state, starts):
+    def _act(self, obs: dict[str, np.ndarray], n: int, state: Any, starts: np.ndarray) -> tuple[np.ndarray, Any]:
         if state is not None:
             position = np.array(state, dtype=np.int64).reshape(-1)
             if position.shape != (n,):
@@ -334,7 +343,7 @@ class RulThreshold(RulePolicy):
                 "make the env with obs_mode='phm' (or 'oracle')"
             )
 
-    def _act(self, obs, n, state, starts):
+    def _act(self, obs: dict[str, np.ndarray], n: int, state: Any, starts: np.ndarray) -> tuple[np.ndarray, Any]:
         diagnosis, rul = obs["diagnosis"], obs["rul"]
         classes = len(self.actions.diagnosis_classes)
         if diagnosis.shape[1] != classes:
@@ -458,7 +467,7 @@ class CorrectiveBand(RulePolicy):
             self._element_column = np.array([self.actions.elements.index(c) for c in classes])
             self.needs = (*type(self).needs, "ea")
 
-    def _act(self, obs, n, state, starts):
+    def _act(self, obs: dict[str, np.ndarray], n: int, state: Any, starts: np.ndarray) -> tuple[np.ndarray, Any]:
         diagnosis, estimate = obs["diagnosis"], obs["parameter_estimate"]
         if diagnosis.shape[1] != len(self._corrective) + 1:
             raise ValueError(

@@ -13,6 +13,7 @@ import importlib.util
 import json
 import shutil
 import time
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, cast
@@ -230,7 +231,7 @@ def _normalization_beside(checkpoint: Path) -> Path:
     return checkpoint.with_name(f"{prefix}_vecnormalize_{steps}_steps.pkl")
 
 
-def load_policy(directory: Path, obs_mode: str | None = None):
+def load_policy(directory: Path, obs_mode: str | None = None) -> NormalizedPolicy:
     """A trained policy with SB3's ``predict``, normalising raw observations as during training."""
     directory = Path(directory)
     summary = json.loads((directory / SUMMARY_FILE).read_text())
@@ -250,9 +251,12 @@ class NormalizedPolicy:
     normalization: VecNormalize
     obs_mode: str
 
-    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+    def predict(
+        self, observation: Mapping[str, Any], state: Any = None, episode_start: Any = None, deterministic: bool = True,
+    ) -> tuple[np.ndarray, Any]:
+        """SB3's ``predict`` on environment observations (one, or a batch with a leading axis)."""
         batched = observation["time_since_maintenance"].ndim == 2
-        batch = observation if batched else {key: value[None] for key, value in observation.items()}
+        batch = dict(observation) if batched else {key: value[None] for key, value in observation.items()}
         learner_view = self.normalization.normalize_obs(cast(LearnerView, self.normalization.venv).forward(batch))
         actions, state = self.model.predict(learner_view, state, episode_start, deterministic)
         return (actions if batched else actions[0]), state

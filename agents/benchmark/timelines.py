@@ -8,12 +8,13 @@ from typing import Any
 import numpy as np
 
 from agents.benchmark.settings import env_factory
+from agents.policies import Policy
 from ea_gym.files import finite_or_none
 
 __all__ = ["record_timeline"]
 
 
-def record_timeline(policy: Any, obs_mode: str, seed: int, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def record_timeline(policy: Policy, obs_mode: str, seed: int, env_kwargs: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Step one episode of ``policy`` on ``obs_mode`` and record what the timelines show.
 
     The PHM chain's estimates come from a second environment in obs_mode "phm" stepped in lockstep
@@ -61,9 +62,9 @@ def record_timeline(policy: Any, obs_mode: str, seed: int, env_kwargs: Mapping[s
         note(0.0, observation, phm_observation, info)
         state, start, step = None, True, 0
         while True:
-            action, state = policy.predict(observation, state=state, episode_start=np.array([start]), deterministic=True)
+            predicted, state = policy.predict(observation, state=state, episode_start=np.array([start]), deterministic=True)
             start = False
-            action = int(np.asarray(action).reshape(-1)[0])
+            action = int(np.asarray(predicted).reshape(-1)[0])
             was_down = bool(observation["maintenance_in_progress"][0] > 0.5)
             observation, _, terminated, truncated, info = env.step(action)
             if shadow is not None:
