@@ -4,10 +4,10 @@ All policies have stable-baselines3's ``predict(observation, state=None, episode
 deterministic=True) -> (actions, state)``, so rules and learned agents are evaluated the same way.
 """
 
-from agents.evaluation import COST_ITEMS, EpisodeStats, evaluate, mean_ci95, tune
+from agents.evaluation import COST_BREAKDOWN, EpisodeStats, evaluate, mean_ci95, tune
 from agents.policies import ActionMap, CorrectiveBand, Oracle, Periodic, RulePolicy, RulThreshold, RunToFailure
 
 __all__ = [
     "ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand",
-    "EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_ITEMS",
+    "EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_BREAKDOWN",
 ]

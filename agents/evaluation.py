@@ -33,14 +33,16 @@ from typing import Any
 
 import numpy as np
 
+from ea_gym.env.infos import COST_ITEMS
 from ea_gym.files import finite_or_none
 
-__all__ = ["EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_ITEMS"]
+__all__ = ["EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_BREAKDOWN"]
 
-COST_ITEMS = ("corrective", "replacement", "failure", "lost_production")
+#: the items an episode's cost is broken down into: the environment's cost items but their total
+COST_BREAKDOWN = tuple(item for item in COST_ITEMS if item != "total")
 _FIELDS = (
     "cost", "failures", "availability", "maintenance_actions", "replacements", "corrective_steps",
-    "ignored_actions", "steps", *(f"cost_{item}" for item in COST_ITEMS),
+    "ignored_actions", "steps", *(f"cost_{item}" for item in COST_BREAKDOWN),
 )
 
 
@@ -103,7 +105,7 @@ class EpisodeStats:
     @property
     def cost_breakdown(self) -> dict[str, float]:
         """Mean cost per episode of each item."""
-        return {item: float(np.mean(self.per_episode[f"cost_{item}"])) for item in COST_ITEMS}
+        return {item: float(np.mean(self.per_episode[f"cost_{item}"])) for item in COST_BREAKDOWN}
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready summary and per-episode lists (non-finite numbers as None)."""
@@ -146,7 +148,7 @@ class _Tally:
         s, counted = self.sums, active.astype(float)
         s["steps"] += counted
         s["cost"] += counted * np.asarray(costs["total"], dtype=float)
-        for item in COST_ITEMS:
+        for item in COST_BREAKDOWN:
             s[f"cost_{item}"] += counted * np.asarray(costs[item], dtype=float)
         s["failures"] += counted * np.asarray(failed, dtype=bool)
         replaced = np.array([any(event.startswith("replacement of") for event in happened) for happened in events])

@@ -6,7 +6,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from agents.evaluation import COST_ITEMS
+from agents.evaluation import COST_BREAKDOWN
 
 __all__ = ["fmt_ci", "fmt_diff", "markdown"]
 
@@ -93,11 +93,11 @@ def _ranking(result: Mapping[str, Any]) -> list[str]:
 
 
 def _cost_breakdown(result: Mapping[str, Any]) -> list[str]:
-    lines = ["## Cost breakdown (mean per episode)", "", "| policy | " + " | ".join(i.replace("_", " ") for i in COST_ITEMS) + " |",
-             "|---|" + "---|" * len(COST_ITEMS)]
+    lines = ["## Cost breakdown (mean per episode)", "", "| policy | " + " | ".join(i.replace("_", " ") for i in COST_BREAKDOWN) + " |",
+             "|---|" + "---|" * len(COST_BREAKDOWN)]
     for name in result["ranking"]:
         b = result["policies"][name]["cost_breakdown"]
-        lines.append(f"| {name} | " + " | ".join(f"{b[i]:.1f}" for i in COST_ITEMS) + " |")
+        lines.append(f"| {name} | " + " | ".join(f"{b[i]:.1f}" for i in COST_BREAKDOWN) + " |")
     return lines
 
 

@@ -49,7 +49,7 @@ def record_timeline(policy: Policy, obs_mode: str, seed: int, env_kwargs: Mappin
         }
 
         def note(t: float, observation: Mapping[str, Any], phm_observation: Mapping[str, Any], info: Mapping[str, Any]) -> None:
-            component = core.wear_components[int(core.wear.faulty[0])]
+            component = core.faulty_component(0)
             low, high = limits[component]
             record["t"].append(t)
             record["component"].append(component)
