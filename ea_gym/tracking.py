@@ -42,6 +42,10 @@ if TYPE_CHECKING:
     from ea_gym.phm.config import PHMConfig
 
 
+#: Smallest measurement noise variance (the channel's unit squared).
+VARIANCE_FLOOR = 1e-30
+
+
 @dataclass(frozen=True)
 class TrackingConfig:
     """Filter settings; parameter quantities relative to the parameter's nominal value.
@@ -232,7 +236,8 @@ class TrackingEstimator:
     def measurement_variance(self, measured: np.ndarray) -> np.ndarray:
         """Each channel's noise variance (N, nx): noise^2 x its clean RMS^2, from the noisy RMS over the step."""
         mean_square = np.mean(measured**2, axis=-1)
-        return self.noise**2 * mean_square / (1.0 + self.noise**2)
+        # a channel at rest (zero signal, so zero noise) is exact; the floor keeps its update defined
+        return np.maximum(self.noise**2 * mean_square / (1.0 + self.noise**2), VARIANCE_FLOOR)
 
     def start(self, rows: np.ndarray, measured: np.ndarray, variance: np.ndarray) -> None:
         """Filters of systems ``rows`` at nominal, their states from the step's first sample."""

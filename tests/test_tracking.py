@@ -169,6 +169,19 @@ def test_adjustment_and_reset() -> None:
         est.update(steps[0], np.zeros(2, dtype=bool), suspects)
 
 
+@pytest.mark.parametrize("system", ["spring_mass_damper", "dc_motor"])
+def test_a_system_at_rest_stays_finite(system: str) -> None:
+    """Zero signals and zero load (zero noise): every estimate and evidence stays finite."""
+    model = get_model(system)
+    est = TrackingEstimator(model, RATE, 0.01, 2)
+    rest = StepSignals(np.zeros((2, len(model.state_names), 101)), np.zeros((2, 101)), np.zeros((2, 101)), np.ones(2))
+    for _ in range(3):
+        out = est.update(rest, np.zeros(2, dtype=bool), np.ones((2, len(est.degradable)), dtype=bool))
+    assert np.isfinite(out.value).all() and np.isfinite(out.log_evidence).all()
+    nominal = [model.nominal[p] for p in est.degradable]
+    np.testing.assert_allclose(out.value, np.broadcast_to(nominal, out.value.shape))
+
+
 def test_behind_the_chains_seam() -> None:
     """The chain's constructor arguments give the chain's sample rate, noise and isolation classes."""
     model = spring_mass_damper()
