@@ -86,7 +86,7 @@ import torch
 from machine import machine_info  # noqa: E402 - experiments/machine.py
 from threadpoolctl import threadpool_limits
 
-import ea_gym.env.core as core_module
+import ea_gym.env.operation as operation_module
 import ea_gym.phm.inversion as inversion_module
 import ea_gym.phm.isolation as isolation_module
 import ea_gym.phm.prognosis as prognosis_module
@@ -281,14 +281,14 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
     targets: list[tuple[Any, str, str]] = [
         (unwrapped, "step", "unwrapped.step"),
         (core, "step", "core.step"),
-        (core, "_operate", "_operate"),
-        (core, "_load", "_load"),
-        (core, "_observe", "_observe"),
-        (core, "_idle_outputs", "_idle_outputs"),
-        (core, "_true_rul", "_true_rul"),
-        (core.wear, "advance", "wear.advance"),
-        (core_module, "simulate_measured", "simulate_measured"),
-        (core, "_sensor_noise", "_sensor_noise"),
+        (core, "operate", "operate"),
+        (core.operation, "run", "operation.run"),
+        (core.operation, "load", "load"),
+        (core, "observe", "observe"),
+        (core, "true_rul", "true_rul"),
+        (core.degradation, "advance", "degradation.advance"),
+        (operation_module, "simulate_measured", "simulate_measured"),
+        (core.operation, "sensor_noise", "sensor_noise"),
         (monitor, "measurement_gain", "measurement_gain"),
         (monitor, "update", "monitor.update"),
         (monitor, "powers", "monitor.powers"),
@@ -331,28 +331,33 @@ def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
 
 def stage_rows(p: Profiler, steps: int, step_total: float) -> list[tuple[str, float]]:
     """(label, seconds) rows adding up to ``step_total``: the flat stage table."""
-    U = ("unwrapped.step",)
-    C = U + ("core.step",)
-    O = C + ("_operate",)
-    H = O + ("chain.update",)
-    observe = p.inclusive(*C, "_observe")
+    in_env = ("unwrapped.step",)
+    in_core = in_env + ("core.step",)
+    in_operate = in_core + ("operate",)
+    in_run = in_operate + ("operation.run",)
+    in_chain = in_operate + ("chain.update",)
+    observe = p.inclusive(*in_core, "observe")
     rows = [
-        ("load signal (MaintenanceCore._load)", p.inclusive(*O, "_load")),
-        ("plant + reference simulation (simulate_measured)", p.inclusive(*O, "simulate_measured")),
-        ("measurement gains and products (_operate rest)", p.self_time(*O) + p.inclusive(*O, "measurement_gain")),
-        ("measurement noise (MaintenanceCore._sensor_noise)", p.inclusive(*O, "_sensor_noise")),
-        ("EA monitor (Monitor.update)", p.inclusive(*H, "monitor.update")),
-        ("detection (Detector.update)", p.inclusive(*H, "detector.update")),
-        ("isolation network (Isolation.classify: frame, features, torch)", p.inclusive(*H, "isolation.classify")),
+        ("load signal (Operation.load)", p.inclusive(*in_run, "load")),
+        ("plant + reference simulation (simulate_measured)", p.inclusive(*in_run, "simulate_measured")),
+        ("measurement gains and products (Operation.run rest)", p.self_time(*in_run) + p.inclusive(*in_run, "measurement_gain")),
+        ("measurement noise (Operation.sensor_noise)", p.inclusive(*in_run, "sensor_noise")),
+        ("EA monitor (Monitor.update)", p.inclusive(*in_chain, "monitor.update")),
+        ("detection (Detector.update)", p.inclusive(*in_chain, "detector.update")),
+        ("isolation network (Isolation.classify: frame, features, torch)", p.inclusive(*in_chain, "isolation.classify")),
         ("isolation belief (Isolation.fuse + balance_evidence: network x EA fits x balance)",
-         p.inclusive(*H, "isolation.fuse") + p.inclusive(*H, "isolation.balance_evidence")),
-        ("estimation: EA inversion (estimator.update)", p.inclusive(*H, "estimator.update")),
-        ("prognosis: EoL extrapolation (prognosis.update)", p.inclusive(*H, "prognosis.update")),
-        ("chain bookkeeping (PHMChain.update rest)", p.self_time(*H)),
-        ("observation (MaintenanceCore._observe)", observe),
-        ("core step rest (actions, wear, costs, RUL)", p.self_time(*C) + p.inclusive(*C, "wear.advance") + p.inclusive(*C, "_true_rul")),
-        ("env.unwrapped.step rest (info, history)", p.self_time(*U)),
-        ("Gymnasium wrappers (env.step - unwrapped.step)", step_total - p.inclusive(*U)),
+         p.inclusive(*in_chain, "isolation.fuse") + p.inclusive(*in_chain, "isolation.balance_evidence")),
+        ("estimation: EA inversion (estimator.update)", p.inclusive(*in_chain, "estimator.update")),
+        ("prognosis: EoL extrapolation (prognosis.update)", p.inclusive(*in_chain, "prognosis.update")),
+        ("chain bookkeeping (PHMChain.update rest)", p.self_time(*in_chain)),
+        ("step outputs (MaintenanceCore.operate rest)", p.self_time(*in_operate)),
+        ("observation (MaintenanceCore.observe)", observe),
+        (
+            "core step rest (actions, wear, costs, RUL)",
+            p.self_time(*in_core) + p.inclusive(*in_core, "degradation.advance") + p.inclusive(*in_core, "true_rul"),
+        ),
+        ("env.unwrapped.step rest (info, history)", p.self_time(*in_env)),
+        ("Gymnasium wrappers (env.step - unwrapped.step)", step_total - p.inclusive(*in_env)),
     ]
     return rows
 
@@ -383,6 +388,19 @@ def profile_regime(regime: str, args: argparse.Namespace) -> dict[str, Any]:
 
 
 # -- soak -------------------------------------------------------------------------------------
+
+
+def _finite_step(i: int, obs: dict[str, np.ndarray], reward: float, bad: list[str]) -> bool:
+    """Whether step i's observation and reward are finite; the first five problems are noted in ``bad``."""
+    finite = math.isfinite(reward)
+    for key, value in obs.items():
+        if not np.all(np.isfinite(value)):
+            finite = False
+            if len(bad) < 5:
+                bad.append(f"step {i}: obs[{key!r}] = {value!r}")
+    if not math.isfinite(reward) and len(bad) < 5:
+        bad.append(f"step {i}: reward = {reward!r}")
+    return finite
 
 
 def soak(args: argparse.Namespace) -> dict[str, Any]:
@@ -433,16 +451,8 @@ def soak(args: argparse.Namespace) -> dict[str, Any]:
                 error = f"step {i}: {type(exc).__name__}: {exc}"
                 break
             steps_done = i
-            finite = math.isfinite(reward)
-            for key, value in obs.items():
-                if not np.all(np.isfinite(value)):
-                    finite = False
-                    if len(bad) < 5:
-                        bad.append(f"step {i}: obs[{key!r}] = {value!r}")
-            if not finite:
+            if not _finite_step(i, obs, reward, bad):
                 n_bad += 1
-                if not math.isfinite(reward) and len(bad) < 5:
-                    bad.append(f"step {i}: reward = {reward!r}")
             elif not space.contains(obs):
                 outside += 1
             failures += info["failed"]
@@ -750,9 +760,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             "settings": {
                 "env_id": ENV_ID, "window_seconds": args.window, "steps": args.steps, "warmup": args.warmup,
                 "stage_steps": args.stage_steps, "soak_steps": args.soak_steps,
-                "soak_sample_every": args.soak_sample_every, "soak_carry_on": args.soak_carry_on, "seed": args.seed, "cpu_affinity": pinned,
+                "soak_sample_every": args.soak_sample_every, "soak_carry_on": args.soak_carry_on, "seed": args.seed,
+                "cpu_affinity": pinned,
                 "torch_threads": torch.get_num_threads(),
-                "faulty_regime": {"component": FAULT_COMPONENT, "direction": FAULT.direction, "rate": list(FAULT.rate), "arrival": list(FAULT.arrival)},
+                "faulty_regime": {
+                    "component": FAULT_COMPONENT, "direction": FAULT.direction, "rate": list(FAULT.rate), "arrival": list(FAULT.arrival),
+                },
                 "healthy_regime_arrival_s": NEVER,
             },
             "context_costs_us": contexts,

@@ -95,7 +95,8 @@ def sentence(key: str, row: dict[str, Any], rows: dict[str, dict[str, Any]]) -> 
         ),
         "too_early_periodic": (
             f"Replacing all components every {row['parameter']} s prevents failures ({row['failures']:.2f}) at "
-            f"{row['replacements']:.1f} replacements per episode (replacement cost {b['replacement']:.0f}, lost production {b['lost_production']:.0f})."
+            f"{row['replacements']:.1f} replacements per episode "
+            f"(replacement cost {b['replacement']:.0f}, lost production {b['lost_production']:.0f})."
         ),
         "periodic": (
             f"The best period on the training seeds is {row['parameter']} s: {row['replacements']:.1f} replacements and "
@@ -154,7 +155,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     print(f"tuning on training seeds {train.start}..{train.stop - 1}", flush=True)
     best_period, period_table = timed("tune periodic", lambda: tune(lambda p: Periodic(actions, p), periods, env_factory("sensors"), train, progress))
-    best_threshold, threshold_table = timed("tune rul_threshold", lambda: tune(lambda t: RulThreshold(actions, t), thresholds, env_factory("phm"), train, progress))
+    best_threshold, threshold_table = timed(
+        "tune rul_threshold", lambda: tune(lambda t: RulThreshold(actions, t), thresholds, env_factory("phm"), train, progress)
+    )
     best_oracle, oracle_table = timed("tune oracle", lambda: tune(lambda t: Oracle(actions, t), thresholds, env_factory("oracle"), train, progress))
 
     plan = [  # key, label, policy, obs_mode, parameter
@@ -164,8 +167,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         ("periodic", f"Periodic, tuned ({best_period} s)", Periodic(actions, best_period), "sensors", best_period),
         ("rul_threshold", f"RulThreshold, tuned ({best_threshold} s)", RulThreshold(actions, best_threshold), "phm", best_threshold),
         ("oracle", f"Oracle, tuned ({best_oracle} s)", Oracle(actions, best_oracle), "oracle", best_oracle),
-        ("rul_threshold_corrective", f"supplementary: RulThreshold corrective ({best_threshold} s)", RulThreshold(actions, best_threshold, "corrective"), "phm", best_threshold),
-        ("oracle_corrective", f"supplementary: Oracle corrective ({best_oracle} s)", Oracle(actions, best_oracle, "corrective"), "oracle", best_oracle),
+        (
+            "rul_threshold_corrective", f"supplementary: RulThreshold corrective ({best_threshold} s)",
+            RulThreshold(actions, best_threshold, "corrective"), "phm", best_threshold,
+        ),
+        (
+            "oracle_corrective", f"supplementary: Oracle corrective ({best_oracle} s)",
+            Oracle(actions, best_oracle, "corrective"), "oracle", best_oracle,
+        ),
     ]
     print(f"evaluating on seeds {test.start}..{test.stop - 1}", flush=True)
     stats: dict[str, EpisodeStats] = {}
@@ -251,7 +260,8 @@ def markdown(result: dict[str, Any]) -> str:
             f"| {row['label']} | {row['obs_mode']} | {_fmt_ci(row)} | {row['failures']:.2f} | {row['availability']:.3f} | "
             f"{row['maintenance_actions']:.1f} | {_fmt_diff(row['vs_rul_threshold'])} | {_fmt_diff(row['vs_oracle'])} |"
         )
-    lines += ["", "Cost breakdown (mean per episode):", "", "| policy | corrective | replacement | failure | lost production |", "|---|---|---|---|---|"]
+    lines += ["", "Cost breakdown (mean per episode):", ""]
+    lines += ["| policy | corrective | replacement | failure | lost production |", "|---|---|---|---|---|"]
     for row in rows.values():
         b = row["cost_breakdown"]
         lines.append(f"| {row['label']} | {b['corrective']:.1f} | {b['replacement']:.1f} | {b['failure']:.1f} | {b['lost_production']:.1f} |")

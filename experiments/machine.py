@@ -12,7 +12,7 @@ PACKAGES = ("numpy", "scipy", "numba", "torch", "gymnasium", "stable-baselines3"
 
 def machine_info() -> dict[str, Any]:
     """Processor, cores, platform, package versions, BLAS thread variables and the load average."""
-    versions = {}
+    versions: dict[str, str | None] = {}
     for package in PACKAGES:
         try:
             versions[package] = version(package)
