@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ea_gym.env.events import ActionKind, Replacement, parse_action, parse_event
 from ea_gym.env.infos import COST_ITEMS
 from ea_gym.files import finite_or_none
 
@@ -135,9 +136,9 @@ class _Tally:
     def __init__(self, n: int, action_meanings: Sequence[str]):
         self.sums = {key: np.zeros(n) for key in _FIELDS if key != "availability"}
         self.down_steps = np.zeros(n)
-        meanings = list(action_meanings)
-        self._replace = np.array([m.startswith("replace ") for m in meanings] + [False])
-        self._corrective = np.array([m.startswith("corrective action on ") for m in meanings] + [False])
+        kinds = [parse_action(meaning).kind for meaning in action_meanings]
+        self._replace = np.array([kind is ActionKind.REPLACE for kind in kinds] + [False])
+        self._corrective = np.array([kind is ActionKind.CORRECTIVE for kind in kinds] + [False])
 
     def step(
         self, actions: np.ndarray, was_down: np.ndarray, costs: Mapping[str, Any], failed: np.ndarray,
@@ -151,7 +152,7 @@ class _Tally:
         for item in COST_BREAKDOWN:
             s[f"cost_{item}"] += counted * np.asarray(costs[item], dtype=float)
         s["failures"] += counted * np.asarray(failed, dtype=bool)
-        replaced = np.array([any(event.startswith("replacement of") for event in happened) for happened in events])
+        replaced = np.array([any(isinstance(parse_event(event), Replacement) for event in happened) for happened in events])
         self.down_steps += counted * (was_down | replaced)
         ordered = active & (actions != 0)
         s["ignored_actions"] += ordered & was_down

@@ -31,6 +31,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from ea_gym.env.events import Action, ActionKind
+
 __all__ = ["Policy", "ActionMap", "RulePolicy", "RunToFailure", "Periodic", "RulThreshold", "Oracle", "CorrectiveBand", "wear_fraction"]
 
 
@@ -61,7 +63,7 @@ class ActionMap:
         object.__setattr__(self, "action_meanings", tuple(self.action_meanings))
         object.__setattr__(self, "components", tuple(self.components))
         object.__setattr__(self, "diagnosis_classes", tuple(self.diagnosis_classes))
-        if not self.action_meanings or self.action_meanings[0] != "carry on":
+        if not self.action_meanings or self.action_meanings[0] != str(Action(ActionKind.CARRY_ON)):
             raise ValueError(f"action 0 must be 'carry on', got action meanings {self.action_meanings}")
         if not self.diagnosis_classes or self.diagnosis_classes[0] != "none":
             raise ValueError(f"diagnosis class 0 must be 'none', got {self.diagnosis_classes}")
@@ -81,19 +83,19 @@ class ActionMap:
         if self.elements is not None:
             object.__setattr__(self, "elements", tuple(self.elements))
 
-    def _index(self, meaning: str) -> int:
+    def _index(self, action: Action) -> int:
         try:
-            return self.action_meanings.index(meaning)
+            return self.action_meanings.index(str(action))
         except ValueError:
-            raise ValueError(f"no action {meaning!r} among {self.action_meanings}") from None
+            raise ValueError(f"no action {str(action)!r} among {self.action_meanings}") from None
 
     def replace(self, component: str) -> int:
         """Index of the action "replace <component>"."""
-        return self._index(f"replace {component}")
+        return self._index(Action(ActionKind.REPLACE, component))
 
     def corrective(self, component: str) -> int:
         """Index of the action "corrective action on <component>"."""
-        return self._index(f"corrective action on {component}")
+        return self._index(Action(ActionKind.CORRECTIVE, component))
 
     @classmethod
     def from_env(cls, env: Any) -> ActionMap:

@@ -9,6 +9,8 @@ from typing import Any
 
 import numpy as np
 
+from ea_gym.env.events import ActionKind, parse_action
+
 __all__ = ["plot_cost_distribution", "plot_timelines"]
 
 #: resolution of the figures (dots per inch)
@@ -160,18 +162,19 @@ def _plot_timeline(axes: Any, name: str, tl: Mapping[str, Any], row: Mapping[str
 def _mark_events(ax_p: Any, ax_r: Any, tl: Mapping[str, Any], color: Mapping[str, str]) -> None:
     """Replacements (triangles), corrective steps (ticks) and failures (crosses) above and below the parameter plot."""
     for at, meaning in tl["actions"]:
-        kind, component = meaning.rsplit(" ", 1)
-        if kind == "replace":
-            ax_p.plot(at, 1.12, marker="v", ms=8, color=color[component], mec="black", mew=0.6, zorder=5, clip_on=False)
-            ax_r.axvline(at, color=color[component], lw=0.8, alpha=0.6, zorder=1)
+        action = parse_action(meaning)
+        tint = color[str(action.component)]  # recorded actions are maintenance: each has its component
+        if action.kind is ActionKind.REPLACE:
+            ax_p.plot(at, 1.12, marker="v", ms=8, color=tint, mec="black", mew=0.6, zorder=5, clip_on=False)
+            ax_r.axvline(at, color=tint, lw=0.8, alpha=0.6, zorder=1)
         else:
-            ax_p.plot(at, -0.12, marker="|", ms=8, color=color[component], zorder=5, clip_on=False)
+            ax_p.plot(at, -0.12, marker="|", ms=8, color=tint, zorder=5, clip_on=False)
     for ft, _ in tl["failures"]:
         ax_p.plot(ft, 1.12, marker="X", ms=9, color="#c0392b", mec="black", mew=0.6, zorder=6, clip_on=False)
 
 
 def _episode_summary(tl: Mapping[str, Any]) -> str:
-    replacements = sum(1 for _, m in tl["actions"] if m.startswith("replace "))
+    replacements = sum(1 for _, meaning in tl["actions"] if parse_action(meaning).kind is ActionKind.REPLACE)
     correctives = len(tl["actions"]) - replacements
     summary = f"episode cost {tl['cost']:.0f}, {len(tl['failures'])} failure(s), {replacements} replacement(s)"
     if correctives:

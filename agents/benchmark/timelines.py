@@ -9,6 +9,7 @@ import numpy as np
 
 from agents.benchmark.settings import env_factory
 from agents.policies import Policy
+from ea_gym.env.events import Failure, parse_event
 from ea_gym.files import finite_or_none
 
 __all__ = ["record_timeline"]
@@ -78,8 +79,9 @@ def record_timeline(policy: Policy, obs_mode: str, seed: int, env_kwargs: Mappin
             step += 1
             record["cost"] += float(info["cost"]["total"])
             for event in info["events"]:
-                if event.startswith("failure: "):
-                    record["failures"].append([step * dt, event.split(" ")[1]])
+                failure = parse_event(event)
+                if isinstance(failure, Failure):
+                    record["failures"].append([step * dt, failure.component])
             note(step * dt, observation, phm_observation, info)
             if terminated or truncated:
                 break
