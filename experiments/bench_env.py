@@ -83,6 +83,7 @@ except ImportError:  # pragma: no cover - depends on how the script is started
 
 import gymnasium as gym
 import torch
+from gymnasium import spaces
 from machine import machine_info  # noqa: E402 - experiments/machine.py
 from threadpoolctl import threadpool_limits
 
@@ -93,6 +94,8 @@ import ea_gym.phm.prognosis as prognosis_module
 from ea_gym.degradation import WearConfig
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.env import ENV_ID
+from ea_gym.env.core import MaintenanceCore
+from ea_gym.env.maintenance import BondGraphMaintenanceEnv
 from ea_gym.files import write_json
 from ea_gym.models import get_model
 from ea_gym.threads import single_threaded_blas, single_threaded_torch
@@ -167,6 +170,19 @@ def make_env(obs_mode: str, window: float, wear: dict[str, WearConfig] | None = 
     return env, time.perf_counter() - start
 
 
+def core_of(env: gym.Env) -> MaintenanceCore:
+    """The batched core behind a ``gym.make`` environment."""
+    unwrapped = env.unwrapped
+    assert isinstance(unwrapped, BondGraphMaintenanceEnv)
+    return unwrapped.core
+
+
+def n_actions_of(env: gym.Env) -> int:
+    """The number of discrete actions of ``env``."""
+    assert isinstance(env.action_space, spaces.Discrete)
+    return int(env.action_space.n)
+
+
 def regime_wear(regime: str) -> dict[str, WearConfig] | None:
     if regime == "random":
         return None
@@ -182,9 +198,9 @@ def run(
 ) -> dict[str, Any]:
     """Reset, ``warmup`` untimed steps, then ``steps`` timed ``env.step`` calls; per-step statistics."""
     rng = np.random.default_rng(seed)
-    n_actions = int(env.action_space.n)
+    n_actions = n_actions_of(env)
     env.reset(seed=seed)
-    chain = env.unwrapped.core.chain
+    chain = core_of(env).chain
 
     def act() -> int:
         return int(rng.integers(n_actions)) if random_actions else 0
@@ -213,7 +229,7 @@ def run(
         if terminated or truncated:  # not expected with continue_after_failure and horizon 1e9
             env.reset()
     total = float(durations.sum())
-    out = {
+    out: dict[str, Any] = {
         "steps": steps,
         "warmup": warmup,
         "seconds": total,
@@ -274,7 +290,7 @@ class Profiler:
 def instrumented(env: gym.Env, profiler: Profiler) -> Iterator[None]:
     """Wrap the environment's stages with ``profiler``'s timers; restore everything on exit."""
     unwrapped = env.unwrapped
-    core = unwrapped.core
+    core = core_of(env)
     chain = core.chain
     monitor = core.monitor
     # (object, attribute, timer name); instance attributes shadow the class's methods
@@ -408,7 +424,7 @@ def soak(args: argparse.Namespace) -> dict[str, Any]:
 
     env, _ = make_env("phm", args.window)
     rng = np.random.default_rng(args.seed + 1)
-    n_actions = int(env.action_space.n)
+    n_actions = n_actions_of(env)
     carry_on = args.soak_carry_on
 
     def act() -> int:
@@ -429,7 +445,7 @@ def soak(args: argparse.Namespace) -> dict[str, Any]:
     alarm_steps = 0
     estimating_steps = 0
     isolating_steps = 0
-    chain = env.unwrapped.core.chain
+    chain = core_of(env).chain
     error = None
     start = time.perf_counter()
 
@@ -451,7 +467,7 @@ def soak(args: argparse.Namespace) -> dict[str, Any]:
                 error = f"step {i}: {type(exc).__name__}: {exc}"
                 break
             steps_done = i
-            if not _finite_step(i, obs, reward, bad):
+            if not _finite_step(i, obs, float(reward), bad):
                 n_bad += 1
             elif not space.contains(obs):
                 outside += 1
@@ -658,7 +674,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"1. Throughput ({args.steps} timed steps after {args.warmup} warm-up steps, seed {args.seed}; "
           "alarm / inv. = share of steps with the alarm raised / the EA inversion running)")
     throughput: dict[str, Any] = {}
-    rows = []
+    rows: list[tuple[str, dict[str, Any], float | None]] = []
     for mode in OBS_MODES:
         env, make_s = make_env(mode, args.window)
         repin()

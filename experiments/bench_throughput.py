@@ -29,9 +29,11 @@ import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from gymnasium import spaces
 
 try:
     import ea_gym  # noqa: F401
@@ -40,10 +42,11 @@ except ImportError:  # run from a checkout without installing
     import ea_gym  # noqa: F401
 
 from ea_gym.env import ENV_ID
+from ea_gym.env.maintenance import BondGraphMaintenanceEnv
 from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
 
-KWARGS = {"obs_mode": "phm", "continue_after_failure": True}
+KWARGS: dict[str, Any] = {"obs_mode": "phm", "continue_after_failure": True}
 
 
 def _alarm_share(env) -> float:
@@ -58,7 +61,9 @@ def time_vector(kind: str, n: int, steps: int, warmup: int, seed: int) -> dict:
     env = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode=kind, **KWARGS)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    actions = lambda: rng.integers(0, env.single_action_space.n, n)  # noqa: E731
+    assert isinstance(env.single_action_space, spaces.Discrete)
+    n_actions = int(env.single_action_space.n)
+    actions = lambda: rng.integers(0, n_actions, n)  # noqa: E731
     for _ in range(warmup):
         env.step(actions())
     alarm = _alarm_share(env)
@@ -74,12 +79,15 @@ def time_single(steps: int, warmup: int, seed: int) -> dict:
     env = gym.make(ENV_ID, **KWARGS)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
+    assert isinstance(env.action_space, spaces.Discrete) and isinstance(env.unwrapped, BondGraphMaintenanceEnv)
+    n_actions, chain = int(env.action_space.n), env.unwrapped.core.chain
     for _ in range(warmup):
-        env.step(int(rng.integers(env.action_space.n)))
-    alarm = float(env.unwrapped.core.chain.detector.state.alarm[0])
+        env.step(int(rng.integers(n_actions)))
+    assert chain is not None  # phm mode
+    alarm = float(chain.detector.state.alarm[0])
     started = time.perf_counter()
     for _ in range(steps):
-        env.step(int(rng.integers(env.action_space.n)))
+        env.step(int(rng.integers(n_actions)))
     wall = time.perf_counter() - started
     return {"env_steps_per_s": steps / wall, "batch_steps": steps, "wall_s": wall, "alarm_share": alarm}
 
