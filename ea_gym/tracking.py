@@ -8,7 +8,10 @@ matches the plant's to round-off and its sensitivity dPhi/dtheta comes analytica
 interpolant. The filters run from each system's first step (a filter bank started at an alarm would
 need the fault's history replayed; from the start, it has it, at D + 1 filters per system), and each
 one's innovations give its hypothesis's log-likelihood, the isolation evidence. Prognosis carries the
-parameter and its drift, with their joint covariance, to the safe limit (``drift_end_of_life``).
+parameter and its drift, with their joint covariance, to the safe limit (``drift_end_of_life``). The
+drift is per second of the steps' clock (``StepSignals.t``): where a step stands for more time than
+its signals last (the environment's ``step_seconds`` > its window, the plant's parameters held over
+each window), theta moves by the drift between windows and holds within them.
 
 Process noise (``TrackingConfig``) was chosen on issue 17's three ramps with sensor seeds 10..17,
 distinct from the evaluation seeds 0..4 (``experiments/tracking_accuracy.py --tune``): none on the
@@ -211,6 +214,7 @@ class TrackingEstimator:
         self.P = np.zeros((n_systems, len(nominal), nx + 2, nx + 2))
         self.log_likelihood = np.zeros((n_systems, len(nominal)))
         self.started = np.zeros(n_systems, dtype=bool)
+        self.clock = np.zeros(n_systems)  # the time (s) the filters describe, the end of the last step
 
     @classmethod
     def from_chain(cls, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> TrackingEstimator:
@@ -267,16 +271,38 @@ class TrackingEstimator:
         if np.shape(signals.load) != (n, measured.shape[2]) or np.shape(signals.load_rate) != (n, measured.shape[2]):
             raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
         variance = self.measurement_variance(measured)
+        t = np.asarray(signals.t, dtype=float)
         fresh = np.flatnonzero(~self.started)
         if len(fresh):
             self.start(fresh, measured[fresh], variance[fresh])
+        # a step may stand for more (degradation) time than its signals last (the environment's
+        # step_seconds > window): the plant's parameters then hold over each window and move between
+        # windows, so the filters carry theta over the step's whole span before its signals, not within
+        span = np.where(self.started & ~np.isin(np.arange(n), fresh), t - self.clock, 0.0)
+        held = span > (measured.shape[2] - 1) * self.h * (1.0 + 1e-9)
+        if np.any(held):
+            self.advance_clock(np.where(held, span, 0.0))
+        self.clock = t.copy()
         hyp = self.hypotheses
         track(
             hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
-            np.arange(n), measured, np.ascontiguousarray(signals.load, dtype=float),
+            np.where(held, 0.0, self.h), np.arange(n), measured, np.ascontiguousarray(signals.load, dtype=float),
             np.ascontiguousarray(signals.load_rate, dtype=float), variance, self.z, self.P, self.log_likelihood,
         )
         return self.estimates(np.asarray(signals.t, dtype=float))
+
+    def advance_clock(self, gap: np.ndarray) -> None:
+        """Carry every filter's parameter over ``gap`` (N,) seconds without signals: theta += drift gap,
+        with the random walks' variance over the gap; the states, whose signal goes on, stay."""
+        nx = self.model.state_space.n_states
+        hyp = self.hypotheses
+        self.z[:, :, nx] = np.clip(self.z[:, :, nx] + gap[:, None] * self.z[:, :, nx + 1], hyp.lo, hyp.hi)
+        # P = J P J^T with J the identity but for J[theta, drift] = gap
+        P = self.P
+        P[:, :, nx, :] += gap[:, None, None] * P[:, :, nx + 1, :]
+        P[:, :, :, nx] += gap[:, None, None] * P[:, :, :, nx + 1]
+        P[:, :, nx, nx] += gap[:, None] * self.process_noise[:, 0] / self.h
+        P[:, :, nx + 1, nx + 1] += gap[:, None] * self.process_noise[:, 1] / self.h
 
     def estimates(self, t: np.ndarray) -> ParameterEstimates:
         """The filters' current estimates at times ``t`` (N,)."""

@@ -151,6 +151,25 @@ def test_noise_free_run_recovers_a_ramp_slope() -> None:
     assert out.value[0, j] == pytest.approx(90.0, abs=0.05)
 
 
+def test_steps_longer_than_their_signals() -> None:
+    """Windows of 1 s that stand for 5 s of wear each (the environment's step_seconds > window): k drops
+    1 N/m between windows, -0.2 N/m per second of the steps' clock; the drift is in that clock's unit."""
+    model = spring_mass_damper()
+    column = model.parameter_names.index("k")
+
+    def parameters(t: np.ndarray) -> np.ndarray:
+        theta = np.repeat(model.parameter_vector()[None], len(t), 0)
+        theta[:, column] = 100.0 - np.clip(np.floor(t) - 10.0, 0.0, None)
+        return theta
+
+    model, steps = plant_steps(parameters, 40.0)
+    steps = [replace(s, t=5.0 * s.t) for s in steps]
+    est, out = run_estimator(model, steps, TrackingConfig())
+    j = est.degradable.index("k")
+    assert out.drift[0, j] == pytest.approx(-0.2, rel=0.05)
+    assert out.value[0, j] == pytest.approx(71.0, abs=0.3)
+
+
 def test_adjustment_and_reset() -> None:
     """A logged adjustment moves its hypothesis's theta by the change; a reset restarts at nominal."""
     model, steps = plant_steps(None, 2.0)

@@ -58,12 +58,14 @@ LANES = 32
 
 @numba.njit(cache=True)
 def predict(
-    Z: np.ndarray, P: np.ndarray, M: np.ndarray, dM: np.ndarray, W: np.ndarray, h: float, Q: np.ndarray, F: np.ndarray, T: np.ndarray, lanes: int
+    Z: np.ndarray, P: np.ndarray, M: np.ndarray, dM: np.ndarray, W: np.ndarray, ht: np.ndarray, Q: np.ndarray,
+    F: np.ndarray, T: np.ndarray, lanes: int,
 ) -> None:
     """Time update of a block of filters over one interval, in place; every array has a last, lane axis.
 
     Z: (n, B) states [x, theta, drift]; P: (n, n, B); M = [Phi | Gamma] (nx, nx + 4, B), dM its
-    theta-slope; W: (4, B) the input's coefficients; Q: (n, B) process-noise variances. F: (nx, 2, B)
+    theta-slope; W: (4, B) the input's coefficients; ht: (B,) the drift's time per sample (s: h, or 0
+    where the parameter holds over the step); Q: (n, B) process-noise variances. F: (nx, 2, B)
     workspace (the Jacobian's theta column, the new states); T: (n, n, B) workspace. The Jacobian's
     other entries are Phi and the known rows theta' = theta + h drift, drift' = drift.
     """
@@ -84,15 +86,15 @@ def predict(
     for b in range(lanes):
         for i in range(nx):
             Z[i, b] = F[i, 1, b]
-        Z[nx, b] += h * Z[nx + 1, b]
-    propagate_covariance(P, M, F, h, Q, T, lanes)
+        Z[nx, b] += ht[b] * Z[nx + 1, b]
+    propagate_covariance(P, M, F, ht, Q, T, lanes)
 
 
 @numba.njit(cache=True)
-def propagate_covariance(P: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, Q: np.ndarray, T: np.ndarray, lanes: int) -> None:
+def propagate_covariance(P: np.ndarray, M: np.ndarray, F: np.ndarray, ht: np.ndarray, Q: np.ndarray, T: np.ndarray, lanes: int) -> None:
     """P = J P J^T + diag(Q) for the Jacobian J of ``predict`` (Phi and theta column F[:, 0] in the state rows)."""
-    jacobian_times(P, M, F, h, T, lanes)  # T = J P, symmetric P: T^T = P J^T
-    jacobian_times(T.transpose((1, 0, 2)), M, F, h, P, lanes)  # P = J T^T = J P J^T
+    jacobian_times(P, M, F, ht, T, lanes)  # T = J P, symmetric P: T^T = P J^T
+    jacobian_times(T.transpose((1, 0, 2)), M, F, ht, P, lanes)  # P = J T^T = J P J^T
     n = P.shape[0]
     for i in range(n):
         for b in range(lanes):
@@ -100,7 +102,7 @@ def propagate_covariance(P: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, 
 
 
 @numba.njit(cache=True)
-def jacobian_times(X: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, out: np.ndarray, lanes: int) -> None:
+def jacobian_times(X: np.ndarray, M: np.ndarray, F: np.ndarray, ht: np.ndarray, out: np.ndarray, lanes: int) -> None:
     """out = J X for every lane, J as in ``propagate_covariance``; X, out: (n, n, B)."""
     n = X.shape[0]
     nx = n - 2
@@ -114,7 +116,7 @@ def jacobian_times(X: np.ndarray, M: np.ndarray, F: np.ndarray, h: float, out: n
                         out[i, j, b] += M[i, k, b] * X[k, j, b]
             else:
                 for b in range(lanes):
-                    out[i, j, b] = X[nx, j, b] + h * X[nx + 1, j, b] if i == nx else X[nx + 1, j, b]
+                    out[i, j, b] = X[nx, j, b] + ht[b] * X[nx + 1, j, b] if i == nx else X[nx + 1, j, b]
 
 
 @numba.njit(cache=True)
@@ -170,7 +172,7 @@ def hermite_row(u0: float, u1: float, d0: float, d1: float, h: float, w: np.ndar
 @numba.njit(cache=True)
 def track(
     coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
-    state_noise: float, forget: float, h: float,
+    state_noise: float, forget: float, h: float, drift_time: np.ndarray,
     systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
     z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
 ) -> None:
@@ -184,6 +186,8 @@ def track(
         q: (H, 2) process-noise variances per sample of theta and drift.
         state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
         forget: factor on the log-likelihoods per sample.
+        h: sample period (s); drift_time: (S,) how far theta drifts per sample (s): h, or 0 where the
+            parameter holds over the step (it moves between steps instead).
         systems: (S,) rows of z, P, log_likelihood that ``measured`` etc. (S, ...) belong to.
         measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
         z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
@@ -197,6 +201,7 @@ def track(
     Z, PP, Q = np.empty((n, B)), np.empty((n, n, B)), np.zeros((n, B))
     M0, dM = np.empty((nx, cols, B)), np.empty((nx, cols, B))
     G, R, bounds, anchor, own_lane = np.empty((nx, B)), np.empty((nx, B)), np.empty((2, B)), np.empty(B), np.empty(B, dtype=np.int64)
+    ht = np.empty(B)
     value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[1]))
     for first in range(0, n_filters, B):
         lanes = min(B, n_filters - first)
@@ -215,9 +220,10 @@ def track(
             R[:, b] = variance[s]
             own_lane[b] = own[f]
             bounds[0, b], bounds[1, b] = lo[f], hi[f]
+            ht[b] = drift_time[s]
             Q[nx, b], Q[nx + 1, b] = q[f, 0], q[f, 1]
         density = track_block(
-            Z, PP, Q, M0, dM, anchor, G, own_lane, R, bounds, state_noise, h, first, coefficients.shape[0], measured, load, load_rate, lanes
+            Z, PP, Q, M0, dM, anchor, G, own_lane, R, bounds, state_noise, h, ht, first, coefficients.shape[0], measured, load, load_rate, lanes
         )
         for b in range(lanes):
             s, f = divmod(first + b, coefficients.shape[0])
@@ -233,7 +239,7 @@ def track(
 @numba.njit(cache=True)
 def track_block(
     Z: np.ndarray, P: np.ndarray, Q: np.ndarray, M0: np.ndarray, dM: np.ndarray, anchor: np.ndarray, G: np.ndarray, own: np.ndarray,
-    R: np.ndarray, bounds: np.ndarray, state_noise: float, h: float, first: int, n_hyp: int,
+    R: np.ndarray, bounds: np.ndarray, state_noise: float, h: float, ht: np.ndarray, first: int, n_hyp: int,
     measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, lanes: int,
 ) -> np.ndarray:
     """A block of filters (lanes last; lane b is filter first + b of ``track``'s list) over the step, in place.
@@ -258,7 +264,7 @@ def track_block(
             for j in range(cols):
                 for b in range(lanes):
                     M[i, j, b] = M0[i, j, b] + dM[i, j, b] * (Z[nx, b] - anchor[b])
-        predict(Z, P, M, dM, W, h, Q, F, T, lanes)
+        predict(Z, P, M, dM, W, ht, Q, F, T, lanes)
         correct(Z, P, Y, R, G, own, work, lanes)
         for b in range(lanes):
             # theta stays where the model is defined (and positive, for a gain 1 / theta)
