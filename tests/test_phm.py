@@ -12,6 +12,7 @@ from ea_gym.metrics import alpha_lambda
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import (
     EAInversion,
+    EAInversionEstimator,
     EstimatorConfig,
     ExtrapolationConfig,
     ParameterEstimates,
@@ -20,6 +21,7 @@ from ea_gym.phm import (
     build_chain,
     predict_end_of_life,
     run_scenario,
+    run_signals,
 )
 from ea_gym.plant import run_model
 from ea_gym.reproduce import LOADS, phase_eol
@@ -330,3 +332,35 @@ def test_correlated_estimates_widen_the_end_of_life_interval_by_the_square_root_
     # near the crossing the band is about z sd(t), so its width there doubles with a 4 x covariance
     assert shared.eol - shared.eol_low == pytest.approx(2 * (alone.eol - alone.eol_low), rel=0.1)
     assert shared.eol_high - shared.eol == pytest.approx(2 * (alone.eol_high - alone.eol), rel=0.1)
+
+
+def test_recorded_signals_run_through_the_chain_against_a_simulated_nominal_reference():
+    # signals recorded elsewhere: a k fault from 5 s, measured with 1 % noise, no reference given
+    scenario = _scenario("k", [[0, 100], [5, 100], [40, 90]], load=RANDOM_LOAD, duration=40.0)
+    t = scenario.times()
+    load = scenario.make_load()
+    plant = run_model(MODEL, t, load, scenario.parameters_at)
+    rng = np.random.default_rng(3)
+    chain = build_chain(MODEL, PHMConfig(noise=0.01), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
+    measured = measure(chain.monitor, plant.parameters[None], plant.states[None], 0.01, rng)
+    statuses = run_signals(chain, measured, load.value(t)[None], load.derivative(t)[None])
+    assert len(statuses) == 40 and statuses[-1].t[0] == pytest.approx(40.0)
+    assert statuses[-1].alarm[0] and chain.classes[statuses[-1].isolated[0]] == "k"
+    with pytest.raises(ValueError, match="measured must be"):
+        run_signals(chain, measured[0], load.value(t)[None], load.derivative(t)[None])
+
+
+def test_the_estimator_is_chosen_by_name_and_a_reset_rewrites_only_its_systems_rows():
+    with pytest.raises(ValueError, match="estimator_kind"):
+        PHMConfig(estimator_kind="kalman")
+    chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
+    assert isinstance(chain.estimator, EAInversionEstimator)
+    chain.detector.state.alarm[:] = True
+    chain.estimator.state.estimates[:] = 1.0
+    chain.prognosis.state.history[:] = 2.0
+    alarm, history = chain.detector.state.alarm, chain.prognosis.state.history
+    chain.reset(np.array([False, True]))
+    assert chain.detector.state.alarm is alarm and chain.prognosis.state.history is history  # in place
+    np.testing.assert_array_equal(alarm, [True, False])
+    np.testing.assert_array_equal(chain.estimator.state.estimates[1], MODEL.parameter_vector()[[1, 0, 2]])
+    assert np.all(history[0] == 2.0) and np.all(np.isnan(history[1]))
