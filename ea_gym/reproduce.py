@@ -63,19 +63,19 @@ class PhaseEoL:
 
 def phase_eol(run: ChainRun, chain: PHMChain, scenario: Scenario, start: float, end: float, after: float) -> PhaseEoL:
     """Last EoL predicted before ``end`` while k was isolated, and the worst error after ``after`` (s)."""
+    if scenario.fault is None:
+        raise ValueError("phase_eol needs a scenario with a fault")
     profile = scenario.fault.profile
     limits = scenario.model.safe_limits["k"]
     k_class = chain.classes.index("k")
-    times, eols = [], []
-    for status in run.statuses:
-        t = float(status.t[0])
-        if start < t < end and status.isolated[0] == k_class and np.isfinite(status.eol[0]):
-            times.append(t)
-            eols.append(float(status.eol[0]))
+    predicted = [
+        (float(status.t[0]), float(status.eol[0])) for status in run.statuses
+        if start < float(status.t[0]) < end and status.isolated[0] == k_class and np.isfinite(status.eol[0])
+    ]
     true = float(profile.trend_end_of_life(np.array([0.5 * (start + end)]), limits)[0])
-    if not times:
+    if not predicted:
         return PhaseEoL(None, true, None)
-    times, eols = np.array(times), np.array(eols)
+    times, eols = np.array(predicted).T
     late = times > after
     worst = float(np.max(np.abs(eols[late] - true))) if np.any(late) else None
     return PhaseEoL(float(eols[-1]), true, worst)
