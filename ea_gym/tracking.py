@@ -328,18 +328,21 @@ class TrackingEstimator:
         nx = self.model.state_space.n_states
         limits = np.array([self.model.safe_limits[name] for name in self.degradable], dtype=float)
         times = np.repeat(np.asarray(t, dtype=float)[:, None], len(self.degradable), 1)
-        return drift_end_of_life(self.z[:, 1:, nx], self.z[:, 1:, nx + 1], self.covariance(), limits, times, confidence)
+        diffusion = self.process_noise[1:, 0] / self.h  # theta's random walk goes on over the horizon
+        return drift_end_of_life(self.z[:, 1:, nx], self.z[:, 1:, nx + 1], self.covariance(), limits, times, confidence, diffusion)
 
 
 def drift_end_of_life(
-    value: np.ndarray, drift: np.ndarray, covariance: np.ndarray, limits: np.ndarray, t: np.ndarray, confidence: float = 0.95
+    value: np.ndarray, drift: np.ndarray, covariance: np.ndarray, limits: np.ndarray, t: np.ndarray, confidence: float = 0.95,
+    diffusion: np.ndarray | float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """End of Life where theta + drift (s - t) reaches the safe limit it heads for, with its interval.
 
-    theta and drift are jointly Gaussian (``covariance``), so at a horizon tau the parameter is
-    N(theta + drift tau, var_theta + 2 tau cov + tau^2 var_drift), and P(limit crossed by tau) is a
-    normal CDF. The interval's ends are the horizons where that probability is (1 -+ confidence) / 2:
-    the roots of a quadratic in tau, bounded above only when the drift is resolved (|drift| / its std
+    theta and drift are jointly Gaussian (``covariance``) and theta goes on diffusing (a random walk of
+    ``diffusion`` unit^2/s), so at a horizon tau the parameter is N(theta + drift tau, var_theta +
+    tau (2 cov + diffusion) + tau^2 var_drift), and P(limit crossed by tau) is a normal CDF. The
+    interval's ends are the horizons where that probability is (1 -+ confidence) / 2: the roots of a
+    quadratic in tau, bounded above only when the drift is resolved (|drift| / its std
     above the confidence's z, about 2).
 
     Args:
@@ -347,6 +350,7 @@ def drift_end_of_life(
         covariance: (..., 2, 2) of (theta, drift).
         limits: (..., 2) the (lower, upper) safe limits.
         t: (...,) the time the values describe (s).
+        diffusion: (...,) or a number: variance per second of theta's random walk from now on (unit^2/s).
 
     Returns:
         eol, eol_low, eol_high (s), each (...,); inf where the limit is not approached (or not surely).
@@ -358,11 +362,12 @@ def drift_end_of_life(
     sign = np.where(upward, 1.0, -1.0)
     margin = sign * (limit - value)  # distance still to go, toward the limit (> 0 before it)
     rate = sign * drift
-    v_tt, v_td, v_dd = covariance[..., 0, 0], sign * covariance[..., 0, 1], covariance[..., 1, 1]
+    v_tt, v_dd = covariance[..., 0, 0], covariance[..., 1, 1]
+    v_td = sign * covariance[..., 0, 1] + 0.5 * np.asarray(diffusion, dtype=float)
     with np.errstate(divide="ignore", invalid="ignore"):
         tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
         z = float(ndtri(0.5 + 0.5 * confidence))
-        # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd)
+        # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td
         a = rate**2 - z**2 * v_dd
         b = -2.0 * rate * margin - 2.0 * z**2 * v_td
         c = margin**2 - z**2 * v_tt

@@ -222,6 +222,11 @@ def test_drift_end_of_life_hand_computed() -> None:
         tau = end - 10.0
         assert norm.cdf((85.0 - (100.0 - 0.5 * tau)) / np.sqrt(1.0 + 0.0025 * tau**2)) == pytest.approx(p, abs=1e-9)
     assert low < eol == 40.0 < high
+    # theta diffusing on at 0.04 unit^2/s: its variance grows by 0.04 tau
+    _, low, high = drift_end_of_life(np.array(100.0), np.array(-0.5), cov, limits, np.array(10.0), diffusion=0.04)
+    for end, p in ((low, 0.025), (high, 0.975)):
+        tau = end - 10.0
+        assert norm.cdf((85.0 - (100.0 - 0.5 * tau)) / np.sqrt(1.0 + 0.04 * tau + 0.0025 * tau**2)) == pytest.approx(p, abs=1e-9)
     # an unresolved drift (|drift| / std < 1.96): no upper bound; a drift away from both limits: no End of Life
     _, low, high = drift_end_of_life(np.array(100.0), np.array(-0.05), cov, limits, np.array(0.0))
     assert np.isinf(high) and 0 < low < np.inf
