@@ -100,6 +100,7 @@ class Operation:
         self.model = model
         self.monitor = monitor
         self.n = n_systems
+        self.nominal = model.parameter_vector()  # the reference's parameters
         self.h = 1.0 / sample_rate
         self.window = window
         self.samples = window_samples(window, self.h)
@@ -131,9 +132,8 @@ class Operation:
         """Simulate one window of every plant under its true ``parameters`` (N, P) and of the reference, and measure."""
         u, du = self.load(self.elapsed)
         n = self.n
-        nominal = self.model.parameter_vector()
         # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
-        theta = np.concatenate([parameters, np.broadcast_to(nominal, parameters.shape)])
+        theta = np.concatenate([parameters, np.broadcast_to(self.nominal, parameters.shape)])
         loads = np.concatenate([u, u])[..., None]
         rates = np.concatenate([du, du])[..., None]
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
