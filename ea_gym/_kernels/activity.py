@@ -16,7 +16,7 @@ def trapezoid_area(p0: float, p1: float, h: float) -> float:
     return 0.5 * (abs(p0) + abs(p1)) * h
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, inline="always")
 def trapezoid_activity(power: np.ndarray, start: int, stop: int, h: float) -> float:
     """EA (J) of ``power`` (T,) in W over the sample intervals [start, stop), summed in time order."""
     activity = 0.0
