@@ -1,7 +1,8 @@
 """The Energy Activity trapezoid (paper eq 4/7): EA = int |P| dt by the trapezoidal rule over the samples.
 
 Every EA in ea_gym is made of ``trapezoid_area``: the batch and streaming EA of ``ea_gym.energy`` from
-``interval_activities``, the monitor's and the estimator's sub-window sums from ``trapezoid_activity``.
+``interval_activities``, the estimator's window sums from ``trapezoid_activity``, and the monitor's
+sub-window sums from ``trapezoid_area`` itself, in the loop that also sums the signed energy.
 """
 
 from __future__ import annotations
