@@ -11,6 +11,7 @@ true hypothesis holds the largest log-evidence; and the time per step at N = 1 a
 
     python experiments/tracking_accuracy.py            # the table (evaluation seeds 0..4)
     python experiments/tracking_accuracy.py --systems  # every built-in's parameters, random loads
+    python experiments/tracking_accuracy.py --wear 1e-4  # RUL under linear / Wiener / gamma wear
     python experiments/tracking_accuracy.py --tune     # process-noise grid on the three ramps, tuning seeds 10..17
 """
 
@@ -223,16 +224,69 @@ def systems_table(seed: int = 5) -> None:
               f"log-evidence over none: {', '.join(f'{n} {e - evidence[0]:+.1f}' for n, e in zip(names[1:], evidence[1:]))} | | | |")
 
 
+def wear_profile(process: str, parameter: str, rng: np.random.Generator) -> tuple[list[list[float]], float, float]:
+    """A fault profile (1 s points) like the environment's ``Wear``: arrival at 20 s, a random direction, a
+    mean rate of 0.5-1.5 % of the way to the limit per s, volatility 0.3; and that rate and limit."""
+    model = get_model("spring_mass_damper")
+    nominal, (lower, upper) = model.nominal[parameter], model.safe_limits[parameter]
+    limit = upper if rng.random() < 0.5 else lower
+    velocity = rng.uniform(0.005, 0.015) * (limit - nominal)
+    times = np.arange(0.0, np.ceil(20.0 + 1.3 * (limit - nominal) / velocity) + 1.0)
+    values = [nominal]
+    for t in times[1:]:
+        mean = velocity if t > 20.0 else 0.0
+        if process == "linear" or mean == 0.0:
+            increment = mean
+        elif process == "wiener":
+            increment = mean + 0.3 * abs(velocity) * np.sqrt(10.0) * rng.standard_normal()
+        else:  # gamma: the std over 10 s is 0.3 x its mean
+            scale = (0.3 * velocity * 10.0) ** 2 / 10.0 / abs(mean)
+            increment = np.sign(mean) * rng.gamma(abs(mean) / scale, scale)
+        values.append(values[-1] + increment)
+    return [[float(t), float(v)] for t, v in zip(times, values)], velocity, limit
+
+
+def wear_table(config: TrackingConfig, runs: int = 6) -> None:
+    """RUL past half-way to the limit (the environment's acceptance regime) under linear, Wiener and
+    gamma wear with random loads: median relative error against the mean trend's RUL, and coverage."""
+    model = get_model("spring_mass_damper")
+    print(f"theta_noise {config.theta_noise:g}, drift_noise {config.drift_noise:g}")
+    print("| wear | parameter | RUL median relative error | interval coverage | steps |\n|---|---|---|---|---|")
+    for process, parameter in itertools.product(("linear", "wiener", "gamma"), ("k", "m", "b")):
+        errors, covered = [], []
+        for seed in range(runs):
+            profile, velocity, limit = wear_profile(process, parameter, np.random.default_rng(1000 + seed))
+            scenario = ramp_scenario("spring_mass_damper", None, seed)
+            scenario = load_scenario({**scenario.to_dict(), "duration": profile[-1][0], "fault": {"parameter": parameter, "profile": profile}})
+            signals = scenario_signals(scenario, seed)
+            estimator = TrackingEstimator(model, scenario.sample_rate, scenario.noise, 1, config=config)
+            j, nominal = estimator.degradable.index(parameter), model.nominal[parameter]
+            truth = signals.truth[:, model.parameter_names.index(parameter)]
+            for k in range(len(signals.t)):
+                step = StepSignals(signals.measured[k], signals.load[k], signals.load_rate[k], signals.t[k : k + 1])
+                estimator.update(step, np.ones(1, dtype=bool), np.ones((1, 3), dtype=bool))
+                if 0.5 <= (truth[k] - nominal) / (limit - nominal) < 1.0:
+                    rul = (limit - truth[k]) / velocity
+                    eol, low, high = (end[0, j] - signals.t[k] for end in estimator.end_of_life(signals.t[k : k + 1]))
+                    errors.append(abs(eol - rul) / rul)
+                    covered.append(low <= rul <= high)
+        print(f"| {process} | {parameter} | {np.median(errors):.3f} | {np.mean(covered):.2f} | {len(errors)} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tune", action="store_true", help="process-noise grid on the tuning seeds 10..17 instead of the table")
     parser.add_argument("--systems", action="store_true", help="every built-in's parameters under random loads instead of the table")
+    parser.add_argument("--wear", type=float, metavar="THETA_NOISE", help="RUL under the environment's wear processes, at this theta_noise")
     args = parser.parse_args()
     if args.tune:
         tune()
         return
     if args.systems:
         systems_table()
+        return
+    if args.wear is not None:
+        wear_table(replace(TrackingConfig(), theta_noise=args.wear))
         return
     print_table(accuracy(range(5), TrackingConfig()))
     for n in (1, 256):
