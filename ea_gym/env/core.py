@@ -22,7 +22,7 @@ from ea_gym.energy import activity_index
 from ea_gym.env.config import EnvConfig
 from ea_gym.env.events import CorrectiveStep, Event, Failure, Replacement, action_table
 from ea_gym.env.infos import COST_ITEMS, StepInfo
-from ea_gym.env.observations import Observer, OracleTruth
+from ea_gym.env.observations import Observation, Observer, OracleTruth
 from ea_gym.env.operation import Degradation, Operation
 from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
@@ -47,7 +47,7 @@ def _calibrated_thresholds(model: SystemModel, config: PHMConfig, seed: int) -> 
 class StepResult:
     """One step for N systems: observation arrays, rewards, ends, and what the ``info`` reports."""
 
-    observation: dict[str, np.ndarray]
+    observation: Observation
     reward: np.ndarray  # (N,)
     terminated: np.ndarray  # (N,)
     truncated: np.ndarray  # (N,)
@@ -133,7 +133,7 @@ class MaintenanceCore:
 
     # -- episode bookkeeping ------------------------------------------------------------------
 
-    def reset(self, rngs: Sequence[np.random.Generator], systems: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def reset(self, rngs: Sequence[np.random.Generator], systems: np.ndarray | None = None) -> Observation:
         """Start new episodes (all systems, or those in the boolean mask); returns the first observation.
 
         System i draws only from ``rngs[i]``, here and in ``step``: its episode is the same whether it
@@ -285,7 +285,7 @@ class MaintenanceCore:
         eai = np.stack(list(activity_index(dict(zip(self.rco, ea[:, self._rco_index].T))).values()), axis=1)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
 
-    def observe(self, outputs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    def observe(self, outputs: dict[str, np.ndarray]) -> Observation:
         """Observation arrays of the step's ``outputs``; systems that are down show idle outputs."""
         oracle = None
         if self.config.obs_mode == "oracle":

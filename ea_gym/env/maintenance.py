@@ -11,9 +11,8 @@ from gymnasium import spaces
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.env.config import EnvConfig, env_config
 from ea_gym.env.core import MaintenanceCore
+from ea_gym.env.observations import Observation
 from ea_gym.models import MODELS, SystemModel, get_model
-
-Observation = dict[str, np.ndarray]
 
 
 class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):

@@ -19,6 +19,8 @@ OBSERVATION_BOUND = 1e6  # every value is clipped to +-OBSERVATION_BOUND (float3
 PARAMETER_POSITION_BOUNDS = (-1.0, 2.0)  # a parameter's position in its safe range: 0 lower limit, 1 upper
 RESIDUAL_FLOOR = 1e-12  # J: the reference EA below which the relative residual's denominator stops
 
+Observation = dict[str, np.ndarray]  # one system's (or, batched, N systems') observation by key
+
 
 @dataclass(frozen=True)
 class OracleTruth:
@@ -96,7 +98,7 @@ class Observer:
 
     def observe(
         self, outputs: dict[str, np.ndarray], since_maintenance: np.ndarray, down: np.ndarray, oracle: OracleTruth | None
-    ) -> dict[str, np.ndarray]:
+    ) -> Observation:
         """Observation arrays (float32) of the step's ``outputs``; systems ``down`` (N,) show idle outputs.
 
         ``since_maintenance`` (N,) in s; ``oracle`` is needed in the "oracle" mode only.

@@ -24,7 +24,8 @@ from gymnasium.vector.utils import batch_space
 
 from ea_gym.env.core import MaintenanceCore
 from ea_gym.env.infos import StepInfo
-from ea_gym.env.maintenance import Observation, build_core
+from ea_gym.env.maintenance import build_core
+from ea_gym.env.observations import Observation
 
 
 class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarray]):
