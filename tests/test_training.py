@@ -81,7 +81,8 @@ def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
     assert (tmp_path / "checkpoints" / "ppo_0_steps.zip").is_file()  # the clone, before learning
     assert summary["selected"]["checkpoint"] in ("0 steps", "128 steps")
     with pytest.raises(ValueError, match="teacher must be one of"):
-        train(TrainingRun(timesteps=64, teacher="guess", n_envs=2, hyperparameters={"n_steps": 32, "batch_size": 64}), tmp_path / "x", progress_bar=False)
+        run = TrainingRun(timesteps=64, teacher="guess", n_envs=2, hyperparameters={"n_steps": 32, "batch_size": 64})
+        train(run, tmp_path / "x", progress_bar=False)
 
 
 def test_teachers_are_the_named_rules_with_their_settings():
@@ -132,7 +133,8 @@ def test_dagger_rounds_label_the_learners_states_and_aggregate_them(tmp_path):
     assert cloning["rounds"][0]["agreement"] >= 0.9
     assert cloning["accuracy"] >= 0.9
     with pytest.raises(ValueError, match="needs a teacher"):
-        train(TrainingRun(timesteps=64, n_envs=2, dagger_rounds=1, hyperparameters={"n_steps": 32, "batch_size": 64}), tmp_path / "x", progress_bar=False)
+        run = TrainingRun(timesteps=64, n_envs=2, dagger_rounds=1, hyperparameters={"n_steps": 32, "batch_size": 64})
+        train(run, tmp_path / "x", progress_bar=False)
 
 
 def test_train_command_rejects_negative_dagger_rounds(capsys):
