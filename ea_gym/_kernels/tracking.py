@@ -129,7 +129,7 @@ def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np
     momentum read through 1 / theta, one relinearisation on the way): no matrix inverse, and the
     log-density is the sum of the channels' conditional ones. gain: (nx, B) at nominal; own: (B,) the
     state whose gain is 1 / theta instead (-1: none). ``work``: (n + 5, B) scratch: P h, then g, d y / d theta, the innovation,
-    its variance and the log-density.
+    the inverse of its variance and the log-density.
     """
     n = Z.shape[0]
     nx = n - 2
@@ -146,14 +146,16 @@ def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np
             for b in range(lanes):
                 work[a, b] = work[G, b] * P[a, i, b] + work[D, b] * P[a, nx, b]
         for b in range(lanes):
-            work[S, b] = work[G, b] * work[i, b] + work[D, b] * work[nx, b] + R[i, b]
-            work[L, b] -= 0.5 * (math.log(work[S, b]) + LOG_2PI + work[V, b] * work[V, b] / work[S, b])
+            variance = work[G, b] * work[i, b] + work[D, b] * work[nx, b] + R[i, b]
+            work[S, b] = 1.0 / variance  # kept as its inverse: one division, then products
+            work[V, b] *= work[S, b]  # the innovation over its variance
+            work[L, b] -= 0.5 * (math.log(variance) + LOG_2PI + work[V, b] * work[V, b] * variance)
         for a in range(n):
             for b in range(lanes):
-                Z[a, b] += work[a, b] * (work[V, b] / work[S, b])
+                Z[a, b] += work[a, b] * work[V, b]
             for c in range(a + 1):
                 for b in range(lanes):
-                    P[a, c, b] -= work[a, b] / work[S, b] * work[c, b]
+                    P[a, c, b] -= work[a, b] * work[S, b] * work[c, b]
                     P[c, a, b] = P[a, c, b]
 
 
@@ -257,9 +259,10 @@ def track_block(
             s = (first + b) // n_hyp
             hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, W[:, b])
             for i in range(nx):
-                g = 1.0 / Z[nx, b] if i == own[b] else G[i, b]
-                Q[i, b] = state_noise * R[i, b] / (g * g)
                 Y[i, b] = measured[s, i, k]
+                if state_noise > 0.0:
+                    g = 1.0 / Z[nx, b] if i == own[b] else G[i, b]
+                    Q[i, b] = state_noise * R[i, b] / (g * g)
         for i in range(nx):
             for j in range(cols):
                 for b in range(lanes):
