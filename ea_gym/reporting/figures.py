@@ -9,7 +9,6 @@ Units: times in s, parameters in their SI unit (``SystemModel.units``), EA in J,
 
 from __future__ import annotations
 
-import itertools
 import math
 import os
 from collections.abc import Callable
@@ -24,7 +23,7 @@ from ea_gym.diagnosis.features import residual_spectrogram
 from ea_gym.files import save_figure
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.pyplot import plt
-from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results, truth_limits
+from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results, isolated_class, truth_limits
 from ea_gym.scenario import Scenario
 
 #: figure name -> (file name, caption)
@@ -46,6 +45,22 @@ def _mark_events(ax: Any, results: dict, scenario: Scenario, label: bool = True)
     if results.get("detection_time") is not None:
         ax.axvline(results["detection_time"], color="tab:red", lw=1.0, ls="--",
                    label=f"detection {results['detection_time']:g} s" if label else None)
+
+
+def plot_within(ax: Any, x: ArrayLike, y: ArrayLike, bottom: float, top: float, color: str, label: str,
+                marker: str = ".", size: float = 4.0) -> None:
+    """Points (x, y) on an axis whose y range is [bottom, top] (set by the caller): those outside are
+    drawn at the edge they passed as triangles pointing off the axis, so that none leaves it and the
+    axis does not stretch to a runaway value. Nothing is drawn (and nothing enters the legend) for an
+    empty set."""
+    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    inside = (y >= bottom) & (y <= top)
+    if inside.any():
+        ax.plot(x[inside], y[inside], marker, color=color, ms=size, ls="none", label=label)
+    for edge, outside, pointer in ((top, y > top, "^"), (bottom, y < bottom, "v")):
+        if outside.any():
+            ax.plot(x[outside], np.full(int(outside.sum()), edge), pointer, color=color, ms=size + 2, ls="none",
+                    clip_on=False, label=f"{label}: off the axis, {'above' if edge == top else 'below'} it")
 
 
 def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
@@ -92,9 +107,10 @@ def _truth_curve(scenario: Scenario, parameter: str, end: float) -> tuple[np.nda
     return t, scenario.parameters_at(t)[:, index]
 
 
-def _fit_steps(run: ChainRun, chain: PHMChain, results: dict) -> list[int]:
-    """Steps whose extrapolation is drawn: the middle prediction of each scored phase, else up to 3
-    predictions spread over the run."""
+def _fit_steps(run: ChainRun, chain: PHMChain, results: dict, parameter: str) -> list[int]:
+    """Steps whose extrapolation of ``parameter`` is drawn: the middle prediction of each scored phase,
+    else up to 3 of its predictions spread over the run. Only steps at which ``parameter`` was the
+    isolated one: another parameter's End of Life is never drawn on its estimate."""
     t = run.t
     chosen: list[float] = []
     phases = (results.get("metrics") or {}).get("eol_phases") or []
@@ -102,23 +118,80 @@ def _fit_steps(run: ChainRun, chain: PHMChain, results: dict) -> list[int]:
         first, last = phase["prediction_times"]
         chosen.append(0.5 * (first + last))
     if not chosen:
-        times = [p["t"] for p in results["eol_predictions"]]
+        times = [p["t"] for p in results["eol_predictions"] if p["parameter"] == parameter]
         if times:
             chosen = [times[int(k)] for k in np.unique(np.linspace(0, len(times) - 1, min(3, len(times))).round())]
-    finite = np.array([math.isfinite(float(s.eol[0])) for s in run.statuses])
+    own = chain.classes.index(parameter)
+    candidates = np.flatnonzero([math.isfinite(float(s.eol[0])) and isolated_class(s) == own for s in run.statuses])
     steps = []
     for target in chosen[:3]:
-        candidates = np.flatnonzero(finite)
         if len(candidates):
             steps.append(int(candidates[np.argmin(np.abs(t[candidates] - target))]))
     return sorted(set(steps))
 
 
+def _estimate_title(parameter: str, results: dict, scenario: Scenario) -> str:
+    """What the estimate figure shows, and whether the parameter is the faulty one."""
+    fault = scenario.fault.parameter if scenario.fault is not None else None
+    isolated = results["estimate"]["parameter"]
+    if isolated is None:
+        state = (results.get("isolation") or {}).get("state", "no alarm")
+        return f"No parameter isolated ({state}): the true {parameter} alone"
+    if fault is not None and isolated != fault:
+        return f"Estimate of {isolated}, isolated wrongly (the fault is in {fault}): no End of Life of {fault} on it"
+    return f"Estimate of {isolated} and End-of-Life extrapolation"
+
+
+def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scenario, results: dict, parameter: str,
+                         ylim: tuple[float, float], end: float) -> float:
+    """The isolated ``parameter``'s trend fits up to its limits, the predicted End of Life (x) and the true
+    trend's (circle); returns the right end of the time axis (s)."""
+    lower, upper = chain.model.safe_limits[parameter]
+    right = end
+    colors = ["tab:orange", "tab:purple", "tab:brown"]
+    # the truth's End of Life only for the faulty parameter
+    fault = scenario.fault if scenario.fault is not None and scenario.fault.parameter == parameter else None
+    marked = {"predicted": False, "true": False}
+    for k, i in enumerate(_fit_steps(run, chain, results, parameter)):
+        prediction = run.statuses[i].end_of_life[0]
+        if prediction is None or not math.isfinite(prediction.eol):
+            continue
+        fit, eol = prediction.fit, prediction.eol
+        level = lower if prediction.limit == "lower" else upper
+        x = np.linspace(fit.times[0], eol, 200)
+        y = np.polyval(fit.coefficients, x - fit.t)
+        color = colors[k % len(colors)]
+        ax.plot(x, np.where((y >= ylim[0]) & (y <= ylim[1]), y, np.nan), color=color, lw=1.4, ls="-.",
+                label=f"degree-{len(fit.coefficients) - 1} fit at t = {fit.t:g} s")
+        ax.plot([eol], [level], "x", color=color, ms=10, mew=2.5, zorder=5, label=None if marked["predicted"] else "predicted EoL")
+        marked["predicted"] = True
+        text = f"EoL {eol:.1f} s"
+        if fault is not None:
+            limits = truth_limits(scenario, parameter)
+            true_eol = float(fault.profile.trend_end_of_life(np.array([fit.t]), limits)[0])
+            if math.isfinite(true_eol):
+                true_level = limits[0 if prediction.limit == "lower" else 1]
+                ax.plot([true_eol], [true_level], "o", color=color, ms=13, mfc="none", mew=1.5, zorder=6,
+                        label=None if marked["true"] else "true trend EoL")
+                marked["true"] = True
+                text += f" (true {true_eol:.1f} s)"
+                right = max(right, true_eol)
+        offset = 8 if prediction.limit == "upper" else -16
+        ax.annotate(text, (eol, level), textcoords="offset points", xytext=(-150 if eol > 0.8 * right else -40, offset),
+                    color=color, fontsize=9, fontweight="bold")
+        right = max(right, eol)
+    return right
+
+
 def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
                   results: dict | None = None) -> Path:
-    """Paper Fig 12: the isolated parameter's estimate vs the truth, the safe limits, and the degree-1
+    """Paper Fig 12: the isolated parameter's estimate vs its truth, the safe limits, and the degree-1
     extrapolations from a prediction time in each phase up to the limit, with the predicted End of
-    Life (x) and the true trend's End of Life (circle)."""
+    Life (x) and the true trend's End of Life (circle).
+
+    The y axis spans the parameter's safe range with margins; estimates beyond it are drawn at its
+    edge (:func:`plot_within`). Only End-of-Life predictions made while the drawn parameter was the
+    isolated one are drawn; with no parameter isolated, the truth of the faulty one alone."""
     results = chain_results(run, chain, scenario) if results is None else results
     estimate = results["estimate"]
     parameter = estimate["parameter"] or (scenario.fault.parameter if scenario.fault else None)
@@ -129,47 +202,22 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
         return save_figure(fig, path)
     unit = scenario.model.units.get(parameter, "")
     lower, upper = chain.model.safe_limits[parameter]
+    span = upper - lower
+    ylim = (lower - 0.15 * span, upper + 0.35 * span)  # room for the legend above the limits
     right = end
-    colors = ["tab:orange", "tab:purple", "tab:brown"]
-    for k, i in enumerate(_fit_steps(run, chain, results) if estimate["parameter"] else []):
-        prediction = run.statuses[i].end_of_life[0]
-        if prediction is None or not math.isfinite(prediction.eol):
-            continue
-        fit, eol = prediction.fit, prediction.eol
-        level = lower if prediction.limit == "lower" else upper
-        x = np.linspace(fit.times[0], eol, 200)
-        color = colors[k % len(colors)]
-        ax.plot(x, np.polyval(fit.coefficients, x - fit.t), color=color, lw=1.4, ls="-.",
-                label=f"degree-{len(fit.coefficients) - 1} fit at t = {fit.t:g} s")
-        ax.plot([fit.t], [np.polyval(fit.coefficients, 0.0)], "o", color=color, ms=5)
-        ax.plot([eol], [level], "x", color=color, ms=10, mew=2.5, zorder=5)
-        text = f"EoL {eol:.1f} s"
-        if scenario.fault is not None and scenario.fault.parameter == parameter:
-            true_eol = float(scenario.fault.profile.trend_end_of_life(np.array([fit.t]), truth_limits(scenario, parameter))[0])
-            if math.isfinite(true_eol):
-                true_level = truth_limits(scenario, parameter)[0 if prediction.limit == "lower" else 1]
-                ax.plot([true_eol], [true_level], "o", color=color, ms=13, mfc="none", mew=1.5, zorder=6)
-                text += f" (true {true_eol:.1f} s)"
-                right = max(right, true_eol)
-        offset = 8 if prediction.limit == "upper" else -16
-        ax.annotate(text, (eol, level), textcoords="offset points", xytext=(-150 if eol > 0.8 * right else -40, offset),
-                    color=color, fontsize=9, fontweight="bold")
-        right = max(right, eol)
+    if estimate["parameter"]:
+        right = _draw_extrapolations(ax, run, chain, scenario, results, parameter, ylim, end)
     right = min(right, 2.0 * end) * 1.02
-    if scenario.fault is not None and scenario.fault.parameter == parameter:
-        tt, truth = _truth_curve(scenario, parameter, right)
-        ax.plot(tt, truth, color="k", lw=1.5, label="true value")
-    ax.plot(estimate["t"], estimate["value"], ".", color="tab:blue", ms=4, label="EA estimate (filtered)")
+    tt, truth = _truth_curve(scenario, parameter, right)
+    ax.plot(tt, np.clip(truth, *ylim), color="k", lw=1.5, label=f"true {parameter}")
+    plot_within(ax, estimate["t"], estimate["value"], *ylim, color="tab:blue", label=f"estimate of {parameter}")
     ax.axhline(lower, color="tab:red", lw=1.0, label=f"safe limits {lower:g} / {upper:g} {unit}")
     ax.axhline(upper, color="tab:red", lw=1.0)
-    ax.plot([], [], "x", color="0.3", ms=8, mew=2, label="predicted EoL")
-    ax.plot([], [], "o", color="0.3", ms=9, mfc="none", label="true trend EoL")
-    span = upper - lower
-    ax.set_ylim(lower - 0.15 * span, upper + 0.35 * span)  # room for the legend above the limits
+    ax.set_ylim(*ylim)
     ax.set_xlim(0, right)
     ax.set_xlabel("time (s)")
     ax.set_ylabel(f"{parameter} ({unit})")
-    ax.set_title(f"Estimate of {parameter} and End-of-Life extrapolation")
+    ax.set_title(_estimate_title(parameter, results, scenario))
     ax.grid(alpha=0.3)
     ax.legend(loc="upper center", fontsize=8, ncol=3, framealpha=0.85)
     fig.tight_layout()
@@ -192,13 +240,14 @@ def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path
     unit = scenario.model.units.get(parameter, "")
     nominal = float(scenario.model.nominal[parameter])
     ax.axvspan(0, ESTIMATION_START, color="0.9", label=f"start-up (not scored, < {ESTIMATION_START:g} s)")
-    ax.plot(t, error, ".-", color="tab:blue", ms=4, lw=0.8, label=f"estimate - truth of {parameter}")
+    # the axis fits the scored errors; a larger start-up error is drawn at its edge
+    scored = t >= ESTIMATION_START
+    bound = max(1.3 * float(np.max(np.abs(error[scored] if scored.any() else error))), 1e-12)
+    ax.plot(t, np.where(np.abs(error) <= bound, error, np.nan), "-", color="tab:blue", lw=0.8)
+    plot_within(ax, t, error, -bound, bound, color="tab:blue", label=f"estimate - truth of {parameter}")
     ax.axhline(0.0, color="k", lw=0.8)
     _mark_events(ax, results, scenario)
-    scored = t >= ESTIMATION_START
-    if scored.any():
-        bound = 1.3 * float(np.max(np.abs(error[scored])))
-        ax.set_ylim(-max(bound, 1e-12), max(bound, 1e-12))
+    ax.set_ylim(-bound, bound)
     estimation = (results.get("metrics") or {}).get("estimation")
     if estimation:
         ax.set_title(
@@ -226,46 +275,33 @@ def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path
 
 def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
              results: dict | None = None) -> Path:
-    """RUL prediction (points) and interval (shaded) over time vs the true RUL of the profile's trend,
-    with the alpha = 0.2 cone (dashed). The y axis is clipped to [0, 2 x the largest finite true RUL]."""
+    """RUL predictions (points, per parameter they were made for) and interval (shaded) over time vs the
+    true RUL of the profile's trend, with the alpha = 0.2 cone (dashed). The y axis is [0, 2 x the
+    largest finite true RUL]; predictions beyond it are drawn at its edge (:func:`plot_within`)."""
     results = chain_results(run, chain, scenario) if results is None else results
     predictions = results["eol_predictions"]
     fig, ax = plt.subplots(figsize=(10, 5))
     end = float(run.t[-1])
     tt = np.linspace(0.0, end, 2401)
     top = None
-    if scenario.fault is not None and results["isolated_parameter"] == scenario.fault.parameter:
-        parameter = scenario.fault.parameter
-        true_eol = scenario.fault.profile.trend_end_of_life(tt, truth_limits(scenario, parameter))
+    fault = scenario.fault.parameter if scenario.fault is not None else None
+    if scenario.fault is not None and fault is not None:
+        true_eol = scenario.fault.profile.trend_end_of_life(tt, truth_limits(scenario, fault))
         true_rul = np.where(np.isfinite(true_eol), true_eol - tt, np.nan)
         # break the line where the true EoL jumps (a new segment)
         jumps = np.flatnonzero(np.abs(np.diff(np.nan_to_num(true_eol, posinf=1e300))) > 1e-6) + 1
         true_rul[jumps] = np.nan
-        ax.plot(tt, true_rul, color="k", lw=1.5, label="true RUL (trend of the profile)")
-        ax.plot(tt, (1 - ALPHA) * true_rul, color="k", lw=0.9, ls="--", label=f"alpha = {ALPHA:g} cone")
-        ax.plot(tt, (1 + ALPHA) * true_rul, color="k", lw=0.9, ls="--")
         if np.isfinite(true_rul).any():
+            ax.plot(tt, true_rul, color="k", lw=1.5, label=f"true RUL of {fault} (trend of the profile)")
+            ax.plot(tt, (1 - ALPHA) * true_rul, color="k", lw=0.9, ls="--", label=f"alpha = {ALPHA:g} cone")
+            ax.plot(tt, (1 + ALPHA) * true_rul, color="k", lw=0.9, ls="--")
             top = 2.0 * float(np.nanmax(true_rul))
     if predictions:
         t = np.array([p["t"] for p in predictions])
         rul = np.array([p["rul"] for p in predictions])
-        big = 1e9
-        low = np.array([big if p["rul_low"] is None else p["rul_low"] for p in predictions])
-        high = np.array([big if p["rul_high"] is None else p["rul_high"] for p in predictions])
         if top is None:
             top = 2.0 * float(np.percentile(rul, 90)) if np.any(rul > 0) else 1.0
-        # a gap of more than one step between predictions, or a change of parameter, breaks the shading
-        parameters = [p["parameter"] for p in predictions]
-        gaps = np.flatnonzero((np.diff(t) > 1.5 * chain.step_time)
-                              | np.array([a != b for a, b in itertools.pairwise(parameters)], dtype=bool)) + 1
-        for k, part in enumerate(np.split(np.arange(len(t)), gaps)):
-            ax.fill_between(t[part], np.clip(low[part], -top, 10 * top), np.clip(high[part], -top, 10 * top),
-                            color="tab:blue", alpha=0.25, lw=0,
-                            label=f"{chain.config.extrapolation.confidence:.0%} interval" if k == 0 else None)
-        same = np.array([p["parameter"] == results["isolated_parameter"] for p in predictions])
-        ax.plot(t[same], rul[same], ".", color="tab:blue", ms=5, label=f"predicted RUL ({results['isolated_parameter']})")
-        if (~same).any():
-            ax.plot(t[~same], rul[~same], "x", color="0.4", ms=5, label="while another parameter was isolated")
+        _draw_rul_predictions(ax, chain, predictions, t, rul, top, fault)
     if top is None or not math.isfinite(top) or top <= 0:
         top = 1.0
     _mark_events(ax, results, scenario)
@@ -278,6 +314,29 @@ def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.
     ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+def _draw_rul_predictions(ax: Any, chain: PHMChain, predictions: list[dict], t: np.ndarray, rul: np.ndarray, top: float,
+                          fault: str | None) -> None:
+    """The predictions' intervals (shaded) and points, one colour per parameter: grey crosses for a
+    parameter other than the faulty one (a wrong isolation)."""
+    big = 1e9
+    low = np.array([big if p["rul_low"] is None else p["rul_low"] for p in predictions])
+    high = np.array([big if p["rul_high"] is None else p["rul_high"] for p in predictions])
+    # a gap of more than one step between predictions, or a change of parameter, breaks the shading
+    parameters = np.array([p["parameter"] for p in predictions])
+    gaps = np.flatnonzero((np.diff(t) > 1.5 * chain.step_time) | (parameters[1:] != parameters[:-1])) + 1
+    for k, part in enumerate(np.split(np.arange(len(t)), gaps)):
+        ax.fill_between(t[part], np.clip(low[part], -top, 10 * top), np.clip(high[part], -top, 10 * top),
+                        color="tab:blue", alpha=0.25, lw=0,
+                        label=f"{chain.config.extrapolation.confidence:.0%} interval" if k == 0 else None)
+    for parameter in dict.fromkeys(parameters):
+        mine = parameters == parameter
+        if fault is None or parameter == fault:
+            plot_within(ax, t[mine], rul[mine], 0.0, top, color="tab:blue", label=f"predicted RUL of {parameter}")
+        else:
+            plot_within(ax, t[mine], rul[mine], 0.0, top, color="0.4", marker="x",
+                        label=f"RUL of {parameter}, isolated wrongly (the fault is in {fault})")
 
 
 def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],

@@ -34,12 +34,28 @@ def _fmt(value: Any, digits: int = 4) -> str:
     return str(value)
 
 
+def _probabilities(probabilities: dict[str, float]) -> str:
+    return ", ".join(f"{k}: {v:.3f}" for k, v in probabilities.items())
+
+
+def isolation_text(results: dict) -> str:
+    """The isolated parameter, or why there is none: "k", "undecided (k 0.62 of the fault belief, ...)"."""
+    isolated = results.get("isolated_parameter")
+    if isolated is not None:
+        return str(isolated)
+    isolation = results.get("isolation") or {}
+    if isolation.get("state") != "undecided":
+        return "- (no alarm)"
+    return (f"undecided: no parameter reaches {isolation['threshold']:.0%} of the fault belief "
+            f"(most likely {isolation['favoured']}, {isolation['confidence']:.0%})")
+
+
 def _summary_rows(results: dict) -> list[tuple[str, str]]:
     rows = [
         ("detection time (s)", _fmt(results.get("detection_time"))),
-        ("isolated parameter", _fmt(results.get("isolated_parameter"))),
-        ("class probabilities (mean since detection)",
-         ", ".join(f"{k}: {v:.3f}" for k, v in results.get("class_probabilities", {}).items())),
+        ("isolated parameter", isolation_text(results)),
+        ("class probabilities (the chain's belief at the end, which isolates)", _probabilities(results.get("class_probabilities", {}))),
+        ("isolation network's own probabilities (mean since detection)", _probabilities(results.get("network_probabilities", {}))),
         ("End-of-Life predictions", str(len(results.get("eol_predictions", [])))),
     ]
     metrics = results.get("metrics")
@@ -49,7 +65,7 @@ def _summary_rows(results: dict) -> list[tuple[str, str]]:
         ("fault parameter", _fmt(metrics.get("fault_parameter"))),
         ("fault onset (s)", _fmt(metrics.get("fault_onset"))),
         ("detection delay (s)", _fmt(metrics.get("detection_delay"))),
-        ("isolation correct", _fmt(metrics.get("isolation_correct"))),
+        ("isolation", _fmt(metrics.get("isolation_outcome"))),
     ]
     estimation = metrics.get("estimation")
     if estimation:

@@ -26,6 +26,7 @@ import numpy as np
 from ea_gym.degradation import PiecewiseLinearProfile
 from ea_gym.files import finite_or_none, json_ready
 from ea_gym.metrics import eol_error, estimation_errors, prognostic_report
+from ea_gym.numerics import TINY
 from ea_gym.phm import ChainRun, HealthStatus, PHMChain
 from ea_gym.scenario import Scenario
 
@@ -38,14 +39,27 @@ LAMBDA = 0.5
 MIN_PHASE_PREDICTIONS = 3
 
 
-def _ready(run: ChainRun) -> np.ndarray:
-    """Steps at which the chain's estimator updated an estimate."""
-    return np.array([bool(s.estimation.estimated[0].any()) for s in run.statuses], dtype=bool)
+def isolated_class(status: HealthStatus) -> int:
+    """The status's isolated class index: its suspect if the isolation is confident of it, else 0."""
+    return int(status.isolated[0]) if status.confident[0] else 0
 
 
-def _isolated(run: ChainRun) -> int:
-    """The last status's isolated class index, 0 while none."""
-    return int(run.statuses[-1].isolated[0]) if run.statuses else 0
+def _isolation(status: HealthStatus, chain: PHMChain) -> dict[str, Any]:
+    """The status's isolation verdict: "no alarm", "isolated" (a confident suspect) or "undecided" (an
+    alarm, and the evidence does not single out a parameter), the fault class the belief favours and its
+    share of the fault classes' belief."""
+    fault_belief = status.diagnosis[0, 1:]
+    favoured = 1 + int(np.argmax(fault_belief))
+    if not status.alarm[0]:
+        state = "no alarm"
+    else:
+        state = "isolated" if isolated_class(status) > 0 else "undecided"
+    return {
+        "state": state,
+        "favoured": chain.classes[favoured] if status.alarm[0] else None,
+        "confidence": float(fault_belief[favoured - 1] / max(float(fault_belief.sum()), TINY)) if status.alarm[0] else 0.0,
+        "threshold": float(chain.config.isolation_confidence),
+    }
 
 
 def _fault_onset(scenario: Scenario) -> float | None:
@@ -82,12 +96,14 @@ def truth_limits(scenario: Scenario, parameter: str) -> tuple[float, float]:
 
 
 def _estimate_series(run: ChainRun, chain: PHMChain, isolated: int) -> dict[str, Any]:
+    """The estimates of the parameter of class ``isolated`` at the steps that updated it (the others repeat
+    a stale value while another suspect is followed alone)."""
     if isolated == 0:
         return {"parameter": None, "t": [], "value": []}
     d = isolated - 1
-    ready = _ready(run)
-    t = [float(s.estimation.time[0, d]) for s, r in zip(run.statuses, ready) if r]
-    value = [float(s.estimates[0, d]) for s, r in zip(run.statuses, ready) if r]
+    updated = [s for s in run.statuses if s.estimation.estimated[0, d]]
+    t = [float(s.estimation.time[0, d]) for s in updated]
+    value = [float(s.estimates[0, d]) for s in updated]
     return {"parameter": chain.degradable[d], "t": t, "value": value}
 
 
@@ -95,14 +111,15 @@ def _eol_predictions(run: ChainRun, chain: PHMChain) -> list[dict[str, Any]]:
     predictions = []
     for s in run.statuses:
         eol = float(s.eol[0])
-        if not math.isfinite(eol):
+        isolated = isolated_class(s)
+        # an End of Life is only reported for a suspect the isolation was confident of at the time
+        if not math.isfinite(eol) or isolated == 0:
             continue
         t = float(s.t[0])
-        isolated = int(s.isolated[0])
         predictions.append(
             {
                 "t": t,
-                "parameter": chain.classes[isolated] if isolated > 0 else None,
+                "parameter": chain.classes[isolated],
                 "eol": eol,
                 "limit": _limit(s),
                 "rul": eol - t,
@@ -183,20 +200,28 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
 
     Keys:
         detection_time: first alarm (s) or None.
-        isolated_parameter: the last status's isolated parameter, None when none.
-        class_probabilities: class -> mean probability over the statuses since detection that had a
-            full isolation frame (the statuses the chain's own isolation averages; before a full frame
-            a status reports "none" = 1), or the last status's when there is no alarm.
+        isolated_parameter: the last status's suspect if the isolation is confident of it; None without
+            an alarm and when the chain is undecided (the evidence does not single out a parameter).
+        class_probabilities: class -> the chain's fused belief at the last status (the network's average
+            weighed by the estimator's and the energy balance's evidence), the probabilities that chose
+            ``isolated_parameter``: it is their argmax among the fault classes. They sum to 1.
+        isolation: {"state": "no alarm" | "isolated" | "undecided", "favoured": the fault class the belief
+            favours (None without an alarm), "confidence": its share of the fault classes' belief,
+            "threshold": the share a suspect needs to be isolated}.
+        network_probabilities: class -> the isolation network's own output: its mean probability over the
+            statuses since detection that had a full isolation frame, or the last status's when there is
+            no alarm. One of the three kinds of evidence, not the verdict.
         estimate: {"parameter", "t", "value"}: the isolated parameter's estimate at every step where
-            the chain ran its estimator (a full inversion window seen and an alarm raised; before, it
-            holds the nominal values), stamped at ``status.t - chain.estimate_lag`` (the time it describes).
+            the chain's estimator updated it (an alarm raised, and the parameter a hypothesis it
+            follows), stamped at the time it describes; parameter None when none is isolated.
         eol_predictions: [{"t", "parameter", "eol", "limit", "rul", "rul_low", "rul_high"}] for every
-            step with a finite End of Life (s); "parameter" is the one isolated at that step, "limit"
-            "lower" or "upper".
+            step with a finite End of Life (s) of a suspect the isolation was confident of; "parameter" is
+            the one isolated at that step, "limit" "lower" or "upper".
         run: duration, steps, noise, estimate lag, frame (s).
         metrics: only when the scenario has a fault: fault parameter, fault onset (s), detection delay
-            (s), isolation_correct, and when isolation is correct: "estimation" (errors of the estimate
-            against the truth at its stamps from ESTIMATION_START on, with the window used),
+            (s), isolation_correct, isolation_outcome (:func:`isolation_outcome`), and when isolation
+            is correct: "estimation" (errors of the estimate against the truth at its stamps from
+            ESTIMATION_START on, with the window used),
             "eol_phases" (per profile segment whose true trend reaches a limit and has at least
             MIN_PHASE_PREDICTIONS predictions made while the fault parameter was isolated: true EoL,
             fraction of predictions heading for the right limit, EoL errors predicted - true, Saxena metrics
@@ -209,17 +234,19 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
     last = statuses[-1]
     detection = float(last.detection_time[0])
     detection_time = detection if math.isfinite(detection) else None
-    isolated = _isolated(run)
+    isolated = isolated_class(last)
     isolated_parameter = chain.classes[isolated] if isolated > 0 else None
     # the statuses the chain's isolation averages: alarm raised and a full frame seen
     counted = [s.probabilities[0] for s in statuses if s.counted[0]]
-    probabilities = np.mean(counted, axis=0) if counted else last.probabilities[0]
+    network = np.mean(counted, axis=0) if counted else last.probabilities[0]
     estimate = _estimate_series(run, chain, isolated)
     predictions = _eol_predictions(run, chain)
     results: dict[str, Any] = {
         "detection_time": detection_time,
         "isolated_parameter": isolated_parameter,
-        "class_probabilities": {name: float(p) for name, p in zip(chain.classes, probabilities)},
+        "class_probabilities": {name: float(p) for name, p in zip(chain.classes, last.diagnosis[0])},
+        "isolation": _isolation(last, chain),
+        "network_probabilities": {name: float(p) for name, p in zip(chain.classes, network)},
         "estimate": estimate,
         "eol_predictions": predictions,
         "run": {
@@ -236,6 +263,14 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
     return json_ready(results)
 
 
+def isolation_outcome(fault_parameter: str, detection_time: float | None, isolated_parameter: str | None) -> str:
+    """How a run's isolation ended against the true faulty parameter: "right", "wrong" (another parameter
+    isolated), "undecided" (an alarm, no confident suspect) or "not detected"."""
+    if isolated_parameter is not None:
+        return "right" if isolated_parameter == fault_parameter else "wrong"
+    return "not detected" if detection_time is None else "undecided"
+
+
 def _fault_metrics(scenario: Scenario, parameter: str, detection_time: float | None, isolated_parameter: str | None,
                    estimate: dict[str, Any], predictions: list[dict[str, Any]]) -> dict[str, Any]:
     """``chain_results``'s "metrics" of a scenario whose fault is in ``parameter``."""
@@ -245,6 +280,7 @@ def _fault_metrics(scenario: Scenario, parameter: str, detection_time: float | N
         "fault_onset": onset,
         "detection_delay": (detection_time - onset) if detection_time is not None and onset is not None else None,
         "isolation_correct": isolated_parameter == parameter,
+        "isolation_outcome": isolation_outcome(parameter, detection_time, isolated_parameter),
         "limits": list(truth_limits(scenario, parameter)),
     }
     if isolated_parameter == parameter:
