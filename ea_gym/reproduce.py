@@ -81,6 +81,27 @@ def phase_eol(run: ChainRun, chain: PHMChain, scenario: Scenario, start: float, 
     return PhaseEoL(float(eols[-1]), true, worst)
 
 
+def run_record(results: dict[str, Any], fault: PhaseEoL, corrective: PhaseEoL) -> dict[str, Any]:
+    """A run's row of the summary from its ``chain_results`` and the phases' End of Life. The End of
+    Life counts only from a run whose isolation named k in the end: after a wrong isolation, or none,
+    it is None and ``isolation`` says why ("wrong", "undecided", "not detected")."""
+    metrics = results["metrics"]
+    right = metrics["isolation_outcome"] == "right"
+    return {
+        "detection_time": results["detection_time"],
+        "isolated_parameter": results["isolated_parameter"],
+        "isolation": metrics["isolation_outcome"],
+        "favoured": results["isolation"]["favoured"],
+        "estimation": metrics.get("estimation"),
+        "eol_fault": fault.predicted if right else None,
+        "eol_fault_true": fault.true,
+        "eol_fault_max_error_after_30s": fault.max_error_after if right else None,
+        "eol_corrective": corrective.predicted if right else None,
+        "eol_corrective_true": corrective.true,
+        "phases": metrics.get("eol_phases"),
+    }
+
+
 def reproduce(
     out: Path,
     classifier: FaultClassifier | None = None,
@@ -110,23 +131,10 @@ def reproduce(
         results = write_phm_outputs(out / name, run, chain, scenario, f"Paper section 4, {load} load, noise {noise:.0%}")
         fault = phase_eol(run, chain, scenario, 5.0, CORRECTIVE_START, after=30.0)
         corrective = phase_eol(run, chain, scenario, CORRECTIVE_START, CORRECTIVE_END, after=CORRECTIVE_START + 30.0)
-        metrics = results["metrics"]
-        # an End of Life counts only from a run that isolated k in the end
-        right = metrics["isolation_outcome"] == "right"
         runs[name] = {
             "load": load,
             "noise": noise,
-            "detection_time": results["detection_time"],
-            "isolated_parameter": results["isolated_parameter"],
-            "isolation": metrics["isolation_outcome"],
-            "favoured": results["isolation"]["favoured"],
-            "estimation": metrics.get("estimation"),
-            "eol_fault": fault.predicted if right else None,
-            "eol_fault_true": fault.true,
-            "eol_fault_max_error_after_30s": fault.max_error_after if right else None,
-            "eol_corrective": corrective.predicted if right else None,
-            "eol_corrective_true": corrective.true,
-            "phases": metrics.get("eol_phases"),
+            **run_record(results, fault, corrective),
             "ea_per_step": {
                 element: [float(s.ea[0, j]) for s in run.statuses] for j, element in enumerate(chain.monitor.elements)
             },
