@@ -215,6 +215,8 @@ class TrackingEstimator:
         self.log_likelihood = np.zeros((n_systems, len(nominal)))
         self.started = np.zeros(n_systems, dtype=bool)
         self.clock = np.zeros(n_systems)  # the time (s) the filters describe, the end of the last step
+        self.lag = 0.0  # its estimates describe the step's end
+        self.warmup_steps = 0  # and come from the first step on
 
     @classmethod
     def from_chain(cls, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> TrackingEstimator:
@@ -312,10 +314,17 @@ class TrackingEstimator:
             variance=self.P[:, 1:, nx, nx].copy(),
             drift=self.z[:, 1:, nx + 1].copy(),
             drift_variance=self.P[:, 1:, nx + 1, nx + 1].copy(),
+            covariance=self.P[:, 1:, nx, nx + 1].copy(),
             log_evidence=self.log_likelihood.copy(),
             estimated=np.ones((self.n, len(self.degradable)), dtype=bool),
             time=np.repeat(t[:, None], len(self.degradable), axis=1),
         )
+
+    @property
+    def diffusion(self) -> np.ndarray:
+        """Each parameter's random walk as the filters model it, variance per second (unit^2/s), (D,):
+        it goes on over a prognosis's horizon."""
+        return self.process_noise[1:, 0] / self.h
 
     def covariance(self) -> np.ndarray:
         """The joint covariance of (theta, drift) of every hypothesis's filter, (N, D, 2, 2)."""
@@ -328,8 +337,7 @@ class TrackingEstimator:
         nx = self.model.state_space.n_states
         limits = np.array([self.model.safe_limits[name] for name in self.degradable], dtype=float)
         times = np.repeat(np.asarray(t, dtype=float)[:, None], len(self.degradable), 1)
-        diffusion = self.process_noise[1:, 0] / self.h  # theta's random walk goes on over the horizon
-        return drift_end_of_life(self.z[:, 1:, nx], self.z[:, 1:, nx + 1], self.covariance(), limits, times, confidence, diffusion)
+        return drift_end_of_life(self.z[:, 1:, nx], self.z[:, 1:, nx + 1], self.covariance(), limits, times, confidence, self.diffusion)
 
 
 def drift_end_of_life(

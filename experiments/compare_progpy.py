@@ -51,7 +51,7 @@ from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import estimation_errors
 from ea_gym.models import SystemModel
 from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for, run_signals
-from ea_gym.phm.estimation import ESTIMATORS
+from ea_gym.phm.estimators import ESTIMATORS
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import add_sensor_noise, measure

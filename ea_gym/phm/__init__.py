@@ -2,7 +2,8 @@
 
 monitor (``ea_gym.diagnosis.monitor``) -> :mod:`~ea_gym.phm.detection` -> :mod:`~ea_gym.phm.isolation`
 (network, balance evidence) -> :mod:`~ea_gym.phm.estimation` (the ``ParameterEstimator`` seam; the EA
-inversion of :mod:`~ea_gym.phm.inversion`) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
+inversion of :mod:`~ea_gym.phm.inversion`; :mod:`~ea_gym.phm.estimators` pairs each estimator kind
+with its prognosis) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
 :mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
 runs scenarios and recorded signals through a chain.
 """
@@ -15,19 +16,31 @@ from ea_gym.phm.estimation import (
     ParameterEstimates,
     ParameterEstimator,
     StepSignals,
-    make_estimator,
 )
+from ea_gym.phm.estimators import ESTIMATORS, EstimationStages, make_stages
 from ea_gym.phm.harness import ChainRun, build_chain, classifier_for, run_scenario, run_signals
 from ea_gym.phm.inversion import EAInversion, EstimatorConfig
 from ea_gym.phm.isolation import balance_chi_square
-from ea_gym.phm.prognosis import EndOfLife, ExtrapolationConfig, TrendFit, predict_end_of_life
+from ea_gym.phm.prognosis import (
+    DriftPrognosis,
+    EndOfLife,
+    ExtrapolationConfig,
+    PrognosisStage,
+    TrendFit,
+    TrendPrognosis,
+    drift_end_of_life,
+    predict_end_of_life,
+)
 
 __all__ = [
+    "ESTIMATORS",
     "ChainRun",
     "DetectorConfig",
     "EAInversion",
     "EAInversionEstimator",
+    "DriftPrognosis",
     "EndOfLife",
+    "EstimationStages",
     "EstimatorConfig",
     "ExtrapolationConfig",
     "HealthStatus",
@@ -35,13 +48,16 @@ __all__ = [
     "PHMConfig",
     "ParameterEstimates",
     "ParameterEstimator",
+    "PrognosisStage",
     "StepSignals",
     "TrendFit",
+    "TrendPrognosis",
     "balance_chi_square",
     "build_chain",
     "calibrate_thresholds",
     "classifier_for",
-    "make_estimator",
+    "drift_end_of_life",
+    "make_stages",
     "predict_end_of_life",
     "relative_residuals",
     "run_scenario",

@@ -10,7 +10,7 @@ of the step that reporting reads. Each stage keeps its own per-system state.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -21,10 +21,11 @@ from ea_gym.energy import activity_index, window_samples
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import Detector
-from ea_gym.phm.estimation import ParameterEstimates, StepSignals, inversion_timing, make_estimator
+from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.phm.estimators import make_stages
 from ea_gym.phm.history import MonitorHistory
 from ea_gym.phm.isolation import Isolation
-from ea_gym.phm.prognosis import EndOfLife, Prognostics
+from ea_gym.phm.prognosis import EndOfLife
 
 
 @dataclass(frozen=True)
@@ -52,8 +53,9 @@ class HealthStatus:
             values describe).
         estimate: the isolated parameter's filtered estimate, NaN while none, (N,); it describes the
             parameter ``PHMChain.estimate_lag`` seconds before ``t``.
-        eol, eol_low, eol_high: End of Life and interval (s), inf while no trend reaches a limit, (N,).
-        end_of_life: each system's prediction with the trend fit behind it, None where none was made.
+        eol, eol_low, eol_high: End of Life and interval (s), inf where none is predicted, (N,).
+        end_of_life: each system's prediction with what it extrapolates (a trend fit or a tracked
+            drift), None where none was made.
     """
 
     t: np.ndarray
@@ -114,15 +116,12 @@ class PHMChain:
         self.thresholds = self.detector.thresholds
         self.isolation = Isolation(classifier, self.monitor, config, self.classes, n_systems)
         self.frame_steps = self.isolation.frame_steps
-        self.estimator = make_estimator(config.estimator_kind, model, self.monitor, config, n_systems)
+        # the estimator and the prognosis that reads it come together (``PHMConfig.estimator_kind``)
+        stages = make_stages(config.estimator_kind, model, self.monitor, config, n_systems)
+        self.estimator, self.prognosis = stages.estimator, stages.prognosis
         if tuple(self.estimator.degradable) != self.degradable:
             raise ValueError(f"the estimator's parameters {self.estimator.degradable} are not the classifier's {self.degradable}")
-        timing = inversion_timing(config)
-        self.estimate_steps, self.estimate_lag = timing.steps, timing.lag
-        self.history_length = int(round(config.extrapolation.span / self.step_time)) + 1
-        # successive estimates share their windows' data and the median's: so many are not independent
-        self.extrapolation = replace(config.extrapolation, correlated=timing.correlated)
-        self.prognosis = Prognostics(model, self.degradable, self.extrapolation, self.history_length, n_systems)
+        self.estimate_steps, self.estimate_lag = self.estimator.warmup_steps, self.estimator.lag
         self._dissipators = self.monitor.component_index[self.monitor.dissipators]  # element indices
         self.history = MonitorHistory.new(
             n_systems, len(self.monitor.elements), len(self.monitor.components), len(model.state_names),
@@ -137,7 +136,7 @@ class PHMChain:
         self.detector.state.reset(systems)
         self.isolation.state.reset(systems)
         self.estimator.reset(systems)
-        self.prognosis.state.reset(systems)
+        self.prognosis.reset(systems)
         self.monitor.reset(systems)
 
     def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 from ea_gym.diagnosis.monitor import MonitorConfig
 from ea_gym.phm.detection import DetectorConfig
-from ea_gym.phm.estimation import ESTIMATORS
+from ea_gym.phm.estimators import ESTIMATORS
 from ea_gym.phm.inversion import EstimatorConfig
 from ea_gym.phm.prognosis import ExtrapolationConfig
 
@@ -36,8 +36,10 @@ class PHMConfig:
             correlated over the smoothing filter's span, so the regression's own variance understates
             it: fault-free runs at 1 % noise give chi-squares 2.3 x their degrees of freedom over 10 s;
             4 was the best of 1, 2 and 4 on development episodes (decision cost).
-        estimator_kind: the parameter estimator (a key of ``ea_gym.phm.estimation.ESTIMATORS``): "ea_inversion", the paper's EA
-            inversion with a median filter.
+        estimator_kind: the parameter estimator and its prognosis (a key of ``ea_gym.phm.estimators.ESTIMATORS``):
+            "tracking", a Kalman filter per hypothesis tracking the parameter and its drift, the drift
+            carried to the limits; "ea_inversion", the paper's EA inversion with a median filter, its
+            trend extrapolated.
     """
 
     step: float = 1.0

@@ -14,7 +14,6 @@ each hypothesis's log fit cost.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
@@ -58,6 +57,7 @@ class ParameterEstimates:
         drift: its rate of change (unit/s), NaN where none, (N, D); drift_variance: its variance, (N, D).
         log_evidence: log-likelihood-like evidence of "none" then each hypothesis, larger is better,
             NaN where not yet fitted, (N, D + 1).
+        covariance: the covariance of each value and its drift (unit^2/s), NaN where none, (N, D).
         estimated: which hypotheses were updated at this step, (N, D).
         time: the time each value describes (s), (N, D).
     """
@@ -66,15 +66,24 @@ class ParameterEstimates:
     variance: np.ndarray
     drift: np.ndarray
     drift_variance: np.ndarray
+    covariance: np.ndarray
     log_evidence: np.ndarray
     estimated: np.ndarray
     time: np.ndarray
 
 
 class ParameterEstimator(Protocol):
-    """Follows every degradable parameter of N systems, each as if it alone were faulty."""
+    """Follows every degradable parameter of N systems, each as if it alone were faulty.
+
+    Attributes:
+        degradable: the parameters, the isolation's fault classes in order.
+        lag: its estimates describe the parameters so many seconds before the step's end (s).
+        warmup_steps: updates after a reset before its first estimate.
+    """
 
     degradable: tuple[str, ...]
+    lag: float
+    warmup_steps: int
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Start over for all systems (None), or for those where the boolean mask (N,) is true."""
@@ -217,6 +226,8 @@ class EAInversionEstimator:
         self.inversion = EAInversion(monitor, config.estimator)
         self.degradable: tuple[str, ...] = classes_of(model)[1:]
         self.timing = inversion_timing(config)
+        self.lag = self.timing.lag
+        self.warmup_steps = self.timing.steps
         self.degradable_index = np.array([model.parameter_names.index(p) for p in self.degradable])
         nominal = model.parameter_vector()[self.degradable_index]
         step_samples = window_samples(config.step, monitor.h)
@@ -252,7 +263,7 @@ class EAInversionEstimator:
             self._invert(chosen, ready)
         nothing = np.full(chosen.shape, np.nan)
         return ParameterEstimates(
-            value=s.estimates.copy(), variance=nothing, drift=nothing, drift_variance=nothing, log_evidence=-s.fit,
+            value=s.estimates.copy(), variance=nothing, drift=nothing, drift_variance=nothing, covariance=nothing, log_evidence=-s.fit,
             estimated=chosen, time=np.repeat((signals.t - self.timing.lag)[:, None], chosen.shape[1], axis=1),
         )
 
@@ -287,13 +298,3 @@ class EAInversionEstimator:
         s.fit[pairs] = np.where(np.isnan(fit), log_cost, fit + self.config.fit_smoothing * (log_cost - fit))
         push_median(s.raw, rows, columns, np.ascontiguousarray(values, dtype=float), s.estimates)
 
-
-#: estimator kind -> its class (constructed with the model, the chain's monitor, the chain's settings and N)
-ESTIMATORS: dict[str, Callable[[SystemModel, Monitor, PHMConfig, int], ParameterEstimator]] = {"ea_inversion": EAInversionEstimator}
-
-
-def make_estimator(kind: str, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> ParameterEstimator:
-    """The chain's estimator of ``kind`` (``PHMConfig.estimator_kind``, a key of ``ESTIMATORS``)."""
-    if kind not in ESTIMATORS:
-        raise ValueError(f"estimator_kind must be one of {sorted(ESTIMATORS)}, got {kind!r}")
-    return ESTIMATORS[kind](model, monitor, config, n_systems)

@@ -1,16 +1,25 @@
-"""Prognosis: the trend of the suspect's recent estimates, its End of Life, RUL and interval (paper 3.3).
+"""Prognosis: the suspect's End of Life, RUL and interval, from its estimates (paper 3.3).
 
-The End of Life is where a polynomial fitted to the recent estimates (degree 1 by default) reaches a
-safe limit; the interval comes from the fit's covariance (the times where the confidence band of the
-trend reaches the limit). Only a suspect the isolation is confident of gets one.
+Two stages behind one seam (:class:`PrognosisStage`), chosen with the estimator:
+
+* :class:`TrendPrognosis` (the paper's, for estimators without a drift: the EA inversion): the End of
+  Life is where a polynomial fitted to the recent estimates (degree 1 by default) reaches a safe
+  limit; the interval comes from the fit's covariance (the times where the confidence band of the
+  trend reaches the limit).
+* :class:`DriftPrognosis` (for estimators that track the parameter's drift with its covariance: the
+  tracking filter): the parameter and its drift carried to the safe limit (:func:`drift_end_of_life`).
+
+Only a suspect the isolation is confident of gets one.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
+from scipy.special import ndtri
 from scipy.stats import norm
 
 from ea_gym.models import SystemModel
@@ -39,14 +48,16 @@ class TrendFit:
 
 @dataclass(frozen=True)
 class EndOfLife:
-    """One End-of-Life prediction.
+    """One End-of-Life prediction, from a polynomial trend or from a tracked drift.
 
     Attributes:
         t: prediction time (s).
-        eol: predicted End of Life (s); inf when the trend never reaches a limit.
+        eol: predicted End of Life (s); inf when the parameter is not heading for a limit.
         eol_low, eol_high: its interval (s).
         limit: "lower", "upper" or None.
-        fit: the trend it extrapolates.
+        value: the parameter at ``t`` it starts from (its unit): the trend's value there, or the filter's estimate.
+        drift: its rate of change at ``t`` (unit/s); drift_std: that rate's standard deviation.
+        fit: the polynomial trend it extrapolates; None when it carries a tracked drift.
     """
 
     t: float
@@ -54,7 +65,17 @@ class EndOfLife:
     eol_low: float
     eol_high: float
     limit: str | None
-    fit: TrendFit
+    value: float
+    drift: float
+    drift_std: float
+    fit: TrendFit | None
+
+    def path(self, times: np.ndarray) -> np.ndarray:
+        """The parameter it predicts at ``times`` (s): the trend, or the straight line of the drift."""
+        ahead = np.asarray(times, dtype=float) - self.t
+        if self.fit is not None:
+            return np.polyval(self.fit.coefficients, ahead)
+        return self.value + self.drift * ahead
 
     @property
     def rul(self) -> float:
@@ -131,10 +152,14 @@ def extrapolate(fit: TrendFit, limits: tuple[float, float], config: Extrapolatio
     """Where the trend and its confidence band reach the safe ``limits``: now if the newest estimate is past one."""
     t_now, coefficients, covariance = fit.t, fit.coefficients, fit.covariance
     lower, upper = limits
+    slope = float(np.polyval(np.polyder(coefficients), 0.0))
+    # the slope at t_now is the coefficient of the linear term: its variance is that coefficient's
+    slope_std = math.sqrt(covariance[-2, -2]) if len(coefficients) > 1 else 0.0
+    value = float(coefficients[-1])
     if fit.values[-1] <= lower or fit.values[-1] >= upper:
-        return EndOfLife(t_now, t_now, t_now, t_now, "lower" if fit.values[-1] <= lower else "upper", fit)
+        past = "lower" if fit.values[-1] <= lower else "upper"
+        return EndOfLife(t_now, t_now, t_now, t_now, past, value, slope, slope_std, fit)
     z = norm.ppf(0.5 + config.confidence / 2)
-    slope = np.polyval(np.polyder(coefficients), 0.0)
     limit: str | None
     limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)
 
@@ -157,7 +182,94 @@ def extrapolate(fit: TrendFit, limits: tuple[float, float], config: Extrapolatio
     earliest, latest = crossing(-1.0 if below else 1.0), crossing(1.0 if below else -1.0)
     if math.isinf(eol):
         limit = None
-    return EndOfLife(t_now, t_now + eol, t_now + earliest, t_now + latest, limit, fit)
+    return EndOfLife(t_now, t_now + eol, t_now + earliest, t_now + latest, limit, value, slope, slope_std, fit)
+
+
+def drift_end_of_life(
+    value: np.ndarray, drift: np.ndarray, covariance: np.ndarray, limits: np.ndarray, t: np.ndarray, confidence: float = 0.95,
+    diffusion: np.ndarray | float = 0.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """End of Life where theta + drift (s - t) reaches the safe limit it heads for, with its interval.
+
+    theta and drift are jointly Gaussian (``covariance``) and theta goes on diffusing (a random walk of
+    ``diffusion`` unit^2/s), so at a horizon tau the parameter is N(theta + drift tau, var_theta +
+    tau (2 cov + diffusion) + tau^2 var_drift), and P(limit crossed by tau) is a normal CDF. The
+    interval's ends are the horizons where that probability is (1 -+ confidence) / 2: the roots of a
+    quadratic in tau, bounded above only when the drift is resolved (|drift| / its std
+    above the confidence's z, about 2).
+
+    Args:
+        value, drift: (...,) the parameter (its unit) and its drift (unit/s).
+        covariance: (..., 2, 2) of (theta, drift).
+        limits: (..., 2) the (lower, upper) safe limits.
+        t: (...,) the time the values describe (s).
+        diffusion: (...,) or a number: variance per second of theta's random walk from now on (unit^2/s).
+
+    Returns:
+        eol, eol_low, eol_high (s), each (...,); inf where the limit is not approached (or not surely).
+    """
+    value, drift = np.asarray(value, dtype=float), np.asarray(drift, dtype=float)
+    limits, t = np.asarray(limits, dtype=float), np.asarray(t, dtype=float)
+    upward = drift >= 0
+    limit = np.where(upward, limits[..., 1], limits[..., 0])
+    sign = np.where(upward, 1.0, -1.0)
+    margin = sign * (limit - value)  # distance still to go, toward the limit (> 0 before it)
+    rate = sign * drift
+    v_tt, v_dd = covariance[..., 0, 0], covariance[..., 1, 1]
+    v_td = sign * covariance[..., 0, 1] + 0.5 * np.asarray(diffusion, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
+        z = float(ndtri(0.5 + 0.5 * confidence))
+        # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td
+        a = rate**2 - z**2 * v_dd
+        b = -2.0 * rate * margin - 2.0 * z**2 * v_td
+        c = margin**2 - z**2 * v_tt
+        root = np.sqrt(np.maximum(b**2 - 4.0 * a * c, 0.0))
+        linear = -c / b
+        r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
+        small, large = np.minimum(r1, r2), np.maximum(r1, r2)
+        # a > 0: both ends finite, the smaller root the low one; a < 0: the roots straddle 0, the
+        # positive one the low end and no high end
+        low = np.where(a > 0, small, np.where(a < 0, large, linear))
+        low = np.where(c <= 0, 0.0, np.maximum(low, 0.0))
+        high = np.where(a > 0, np.maximum(large, 0.0), np.inf)
+        high = np.where((margin < 0) & (c > 0), 0.0, high)  # surely past the limit already
+    return t + tau, t + low, t + high
+
+
+@dataclass(frozen=True)
+class Prognosis:
+    """One step's prognosis, N systems.
+
+    Attributes:
+        estimate: the confident suspect's estimate, NaN where none, (N,).
+        eol, eol_low, eol_high: End of Life and interval (s), inf where none is predicted, (N,).
+        end_of_life: each system's prediction, None where none.
+    """
+
+    estimate: np.ndarray
+    eol: np.ndarray
+    eol_low: np.ndarray
+    eol_high: np.ndarray
+    end_of_life: tuple[EndOfLife | None, ...]
+
+
+class PrognosisStage(Protocol):
+    """The prognosis of N systems: each confident suspect's End of Life from the estimator's output."""
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems (None), or for those where the boolean mask (N,) is true."""
+
+    def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
+        """Maintenance moved parameter ``parameters[k]`` of system ``systems[k]`` by ``changes[k]`` (its SI unit)."""
+
+    def update(self, estimates: ParameterEstimates, isolated: np.ndarray, confident: np.ndarray, t: np.ndarray) -> Prognosis:
+        """Predict the End of Life of every confident suspect (class index ``isolated``, (N,)) at ``t`` (s, (N,))."""
+
+
+def _no_prognosis(n: int) -> tuple[np.ndarray, np.ndarray, list[EndOfLife | None]]:
+    """Empty per-step outputs: estimates NaN (N,), End of Life inf (N, 3), no predictions."""
+    return np.full(n, np.nan), np.full((n, 3), math.inf), [None] * n
 
 
 @dataclass
@@ -181,30 +293,13 @@ class PrognosisState:
         self.history_t[rows] = np.nan
 
 
-@dataclass(frozen=True)
-class Prognosis:
-    """One step's prognosis, N systems.
-
-    Attributes:
-        estimate: the confident suspect's estimate, NaN where none, (N,).
-        eol, eol_low, eol_high: End of Life and interval (s), inf while no trend reaches a limit, (N,).
-        end_of_life: each system's prediction with the fit it made, None where none.
-    """
-
-    estimate: np.ndarray
-    eol: np.ndarray
-    eol_low: np.ndarray
-    eol_high: np.ndarray
-    end_of_life: tuple[EndOfLife | None, ...]
-
-
-class Prognostics:
-    """The prognosis stage of N systems: each confident suspect's recent estimates extrapolated to its safe limits.
+class TrendPrognosis:
+    """Each confident suspect's recent estimates extrapolated to its safe limits (the paper's prognosis).
 
     Args:
         model: the monitored system (safe limits).
         degradable: the degradable parameters, in the estimator's order.
-        config: extrapolation settings.
+        config: extrapolation settings (``correlated``: the estimator's, how many successive estimates share data).
         history_length: estimates kept per parameter (steps).
         n_systems: N.
     """
@@ -214,6 +309,10 @@ class Prognostics:
         self.config = config
         self.n = n_systems
         self.state = PrognosisState.new(n_systems, len(degradable), history_length)
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems (None), or for those where the boolean mask (N,) is true."""
+        self.state.reset(systems)
 
     def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
         """Shift the history of parameter ``parameters[k]`` of system ``systems[k]`` by ``changes[k]``, as if
@@ -226,9 +325,7 @@ class Prognostics:
         if np.any(estimates.estimated):
             s.history = push_window(s.history, np.where(estimates.estimated, estimates.value, np.nan)[..., None])
             s.history_t = push_window(s.history_t, estimates.time[..., None])
-        estimate = np.full(self.n, np.nan)
-        eol = np.full((self.n, 3), math.inf)
-        predictions: list[EndOfLife | None] = [None] * self.n
+        estimate, eol, predictions = _no_prognosis(self.n)
         rows = np.flatnonzero(confident)  # no End of Life for a suspect the isolation is unsure of
         estimate[rows] = estimates.value[rows, isolated[rows] - 1]
         for i in rows:
@@ -239,4 +336,59 @@ class Prognostics:
             if prediction is not None:
                 eol[i] = (prediction.eol, prediction.eol_low, prediction.eol_high)
             predictions[i] = prediction
+        return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=tuple(predictions))
+
+
+class DriftPrognosis:
+    """Each confident suspect's tracked value and drift, with their covariance, carried to its safe limits.
+
+    Needs an estimator that gives the drift and the (value, drift) covariance (``ParameterEstimates``);
+    the record's ``time`` says when the values hold. The filter's state holds what the trend's history
+    would: nothing of its own to keep, and a logged adjustment has already moved the estimate.
+
+    Args:
+        model: the monitored system (safe limits).
+        degradable: the degradable parameters, in the estimator's order.
+        config: extrapolation settings (``confidence`` of the interval; End-of-Life points beyond
+            ``horizon`` are reported as inf).
+        diffusion: each parameter's random walk from now on, as the estimator models it (unit^2/s), (D,).
+        n_systems: N.
+    """
+
+    def __init__(self, model: SystemModel, degradable: tuple[str, ...], config: ExtrapolationConfig, diffusion: np.ndarray, n_systems: int):
+        self.limits = np.array([model.safe_limits[p] for p in degradable], dtype=float)
+        self.config = config
+        self.diffusion = np.asarray(diffusion, dtype=float)
+        self.n = n_systems
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Nothing to forget: the estimator's filters hold the state."""
+
+    def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
+        """Nothing to shift: the estimator moves its estimate by the logged change."""
+
+    def update(self, estimates: ParameterEstimates, isolated: np.ndarray, confident: np.ndarray, t: np.ndarray) -> Prognosis:
+        """The End of Life of every confident suspect (class index ``isolated``) from its value and drift at ``t`` (s)."""
+        estimate, eol, predictions = _no_prognosis(self.n)
+        rows = np.flatnonzero(confident)  # no End of Life for a suspect the isolation is unsure of
+        if len(rows) == 0:
+            return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=tuple(predictions))
+        d = isolated[rows] - 1
+        value, drift = estimates.value[rows, d], estimates.drift[rows, d]
+        covariance = np.stack([
+            np.stack([estimates.variance[rows, d], estimates.covariance[rows, d]], axis=-1),
+            np.stack([estimates.covariance[rows, d], estimates.drift_variance[rows, d]], axis=-1),
+        ], axis=-2)
+        stamps = estimates.time[rows, d]
+        ends = np.stack(drift_end_of_life(value, drift, covariance, self.limits[d], stamps, self.config.confidence, self.diffusion[d]), axis=1)
+        # as far ahead as the trend route looks: beyond the horizon, no End of Life
+        ends = np.where(ends - t[rows, None] > self.config.horizon, math.inf, ends)
+        estimate[rows] = value
+        eol[rows] = ends
+        for k, i in enumerate(rows):
+            limit = ("lower" if drift[k] < 0 else "upper") if math.isfinite(ends[k, 0]) else None
+            predictions[i] = EndOfLife(
+                float(t[i]), float(ends[k, 0]), float(ends[k, 1]), float(ends[k, 2]), limit, float(value[k]), float(drift[k]),
+                math.sqrt(max(float(covariance[k, 1, 1]), 0.0)), None,
+            )
         return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=tuple(predictions))

@@ -158,17 +158,19 @@ def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scen
             continue
         fit, eol = prediction.fit, prediction.eol
         level = lower if prediction.limit == "lower" else upper
-        x = np.linspace(fit.times[0], eol, 200)
-        y = np.polyval(fit.coefficients, x - fit.t)
+        # the polynomial trend from its first estimate (EA inversion), or the tracked drift from now
+        x = np.linspace(prediction.t if fit is None else fit.times[0], eol, 200)
+        y = prediction.path(x)
         color = colors[k % len(colors)]
+        what = "tracked drift" if fit is None else f"degree-{len(fit.coefficients) - 1} fit"
         ax.plot(x, np.where((y >= ylim[0]) & (y <= ylim[1]), y, np.nan), color=color, lw=1.4, ls="-.",
-                label=f"degree-{len(fit.coefficients) - 1} fit at t = {fit.t:g} s")
+                label=f"{what} at t = {prediction.t:g} s")
         ax.plot([eol], [level], "x", color=color, ms=10, mew=2.5, zorder=5, label=None if marked["predicted"] else "predicted EoL")
         marked["predicted"] = True
         text = f"EoL {eol:.1f} s"
         if fault is not None:
             limits = truth_limits(scenario, parameter)
-            true_eol = float(fault.profile.trend_end_of_life(np.array([fit.t]), limits)[0])
+            true_eol = float(fault.profile.trend_end_of_life(np.array([prediction.t]), limits)[0])
             if math.isfinite(true_eol):
                 true_level = limits[0 if prediction.limit == "lower" else 1]
                 ax.plot([true_eol], [true_level], "o", color=color, ms=13, mfc="none", mew=1.5, zorder=6,
