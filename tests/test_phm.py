@@ -160,7 +160,7 @@ def test_balance_chi_square_is_the_nested_regressions_rise_in_residual_and_singl
 
 
 def test_a_logged_adjustment_moves_the_end_of_life_by_the_change_over_the_wear_rate():
-    chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
+    chain = build_chain(MODEL, PHMConfig(estimator_kind="ea_inversion"), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
     history, estimates = chain.prognosis.state, chain.estimator.state.estimates
     m = chain.degradable.index("m")
     # both systems: m isolated with confidence, its estimates falling 0.01 kg/s from 9.5 kg for 20 s
@@ -172,7 +172,7 @@ def test_a_logged_adjustment_moves_the_end_of_life_by_the_change_over_the_wear_r
     def prognose():  # a step at 20 s that estimated nothing new
         nothing = np.full(estimates.shape, np.nan)
         step = ParameterEstimates(
-            value=estimates.copy(), variance=nothing, drift=nothing, drift_variance=nothing, log_evidence=np.full((2, 4), np.nan),
+            value=estimates.copy(), variance=nothing, drift=nothing, drift_variance=nothing, covariance=nothing, log_evidence=np.full((2, 4), np.nan),
             estimated=np.zeros(estimates.shape, dtype=bool), time=nothing,
         )
         prognosis = chain.prognosis.update(step, np.full(2, 1 + m), np.ones(2, dtype=bool), np.full(2, 20.0))
