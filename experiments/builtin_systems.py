@@ -44,8 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ea_gym.diagnosis.database import draw_loads
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.models import SystemModel, get_model
-from ea_gym.phm import HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
-from ea_gym.phm.estimation import ESTIMATORS
+from ea_gym.phm import ESTIMATORS, HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
 from ea_gym.plant import run_model
 from ea_gym.pyplot import plt
 from ea_gym.sensors import add_sensor_noise, measure

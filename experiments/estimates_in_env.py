@@ -47,8 +47,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ea_gym.degradation import WearConfig
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
 from ea_gym.files import json_ready, save_figure, write_json, write_text
-from ea_gym.phm import PHMConfig
-from ea_gym.phm.estimation import ESTIMATORS
+from ea_gym.phm import ESTIMATORS, PHMConfig
 from ea_gym.pyplot import plt
 
 FAULTS = ("k", "m", "b")
