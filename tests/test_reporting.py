@@ -217,7 +217,7 @@ def test_class_probabilities_are_the_fused_belief_that_isolates(setting):
     assert results["network_probabilities"]["k"] == pytest.approx(0.95)
 
 
-def test_an_undecided_chain_isolates_nothing_and_reports_the_split_belief(setting):
+def test_an_undecided_chain_isolates_nothing_and_reports_the_split_belief(setting, monkeypatch, tmp_path):
     run, chain, scenario = setting
     split = [0.02, 0.5, 0.38, 0.1]
     late = _isolating(chain, "k", confident=False, belief=split)
@@ -234,6 +234,12 @@ def test_an_undecided_chain_isolates_nothing_and_reports_the_split_belief(settin
     assert metrics["isolation_outcome"] == "undecided" and metrics["isolation_correct"] is False
     assert "eol_phases" not in metrics and "estimation" not in metrics
     assert "undecided" in reporting.report.isolation_text(results)
+    # the figure shows the favoured hypothesis's estimate, and no End of Life on it
+    figure = _figure_of(reporting.plot_estimate, monkeypatch, undecided, chain, scenario, tmp_path / "f.png", results=results)
+    _check_axes(figure)
+    labels = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
+    assert "estimate of k (favoured, not isolated)" in labels
+    assert not any("fit" in label or "EoL" in label for label in labels), labels
 
 
 def _figure_of(plot, monkeypatch, *args, **kwargs):

@@ -23,7 +23,7 @@ from ea_gym.diagnosis.features import residual_spectrogram
 from ea_gym.files import save_figure
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.pyplot import plt
-from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results, isolated_class, truth_limits
+from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results, estimate_series, isolated_class, truth_limits
 from ea_gym.scenario import Scenario
 
 #: figure name -> (file name, caption)
@@ -136,6 +136,8 @@ def _estimate_title(parameter: str, results: dict, scenario: Scenario) -> str:
     isolated = results["estimate"]["parameter"]
     if isolated is None:
         state = (results.get("isolation") or {}).get("state", "no alarm")
+        if state == "undecided":
+            return f"No parameter isolated at the end (undecided): {parameter}, the one favoured, without End of Life"
         return f"No parameter isolated ({state}): the true {parameter} alone"
     if fault is not None and isolated != fault:
         return f"Estimate of {isolated}, isolated wrongly (the fault is in {fault}): no End of Life of {fault} on it"
@@ -193,9 +195,14 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
 
     The y axis spans the parameter's safe range with margins; estimates beyond it are drawn at its
     edge (:func:`plot_within`). Only End-of-Life predictions made while the drawn parameter was the
-    isolated one are drawn; with no parameter isolated, the truth of the faulty one alone."""
+    isolated one are drawn. Undecided at the end: the estimate of the parameter the belief favours,
+    without End of Life; no alarm: the truth of the faulty parameter alone."""
     results = chain_results(run, chain, scenario) if results is None else results
     estimate = results["estimate"]
+    # undecided: the estimate of the parameter the belief favours, as one hypothesis among others
+    favoured = (results.get("isolation") or {}).get("favoured")
+    if estimate["parameter"] is None and favoured is not None:
+        estimate = estimate_series(run, chain, chain.classes.index(favoured))
     parameter = estimate["parameter"] or (scenario.fault.parameter if scenario.fault else None)
     fig, ax = plt.subplots(figsize=(10, 5.5))
     end = float(run.t[-1])
@@ -207,12 +214,14 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
     span = upper - lower
     ylim = (lower - 0.15 * span, upper + 0.35 * span)  # room for the legend above the limits
     right = end
-    if estimate["parameter"]:
+    if results["estimate"]["parameter"]:
         right = _draw_extrapolations(ax, run, chain, scenario, results, parameter, ylim, end)
     right = min(right, 2.0 * end) * 1.02
     tt, truth = _truth_curve(scenario, parameter, right)
     ax.plot(tt, np.clip(truth, *ylim), color="k", lw=1.5, label=f"true {parameter}")
-    plot_within(ax, estimate["t"], estimate["value"], *ylim, color="tab:blue", label=f"estimate of {parameter}")
+    undecided = results["estimate"]["parameter"] is None
+    plot_within(ax, estimate["t"], estimate["value"], *ylim, color="0.45" if undecided else "tab:blue",
+                label=f"estimate of {parameter}" + (" (favoured, not isolated)" if undecided else ""))
     ax.axhline(lower, color="tab:red", lw=1.0, label=f"safe limits {lower:g} / {upper:g} {unit}")
     ax.axhline(upper, color="tab:red", lw=1.0)
     ax.set_ylim(*ylim)

@@ -95,7 +95,7 @@ def truth_limits(scenario: Scenario, parameter: str) -> tuple[float, float]:
     return float(lower), float(upper)
 
 
-def _estimate_series(run: ChainRun, chain: PHMChain, isolated: int) -> dict[str, Any]:
+def estimate_series(run: ChainRun, chain: PHMChain, isolated: int) -> dict[str, Any]:
     """The estimates of the parameter of class ``isolated`` at the steps that updated it (the others repeat
     a stale value while another suspect is followed alone)."""
     if isolated == 0:
@@ -239,7 +239,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
     # the statuses the chain's isolation averages: alarm raised and a full frame seen
     counted = [s.probabilities[0] for s in statuses if s.counted[0]]
     network = np.mean(counted, axis=0) if counted else last.probabilities[0]
-    estimate = _estimate_series(run, chain, isolated)
+    estimate = estimate_series(run, chain, isolated)
     predictions = _eol_predictions(run, chain)
     results: dict[str, Any] = {
         "detection_time": detection_time,
