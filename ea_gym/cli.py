@@ -60,15 +60,11 @@ def _phm(args: argparse.Namespace) -> int:
 
 def _reproduce(args: argparse.Namespace) -> int:
     from ea_gym.diagnosis.classifier import FaultClassifier
-    from ea_gym.reproduce import reproduce
+    from ea_gym.reproduce import headline, reproduce
 
     classifier = None if args.classifier is None else FaultClassifier.load(args.classifier)
     summary = reproduce(Path(args.out), classifier, seed=args.seed)
-    print(
-        f"End of Life, fault: {summary['eol_fault']:.1f} s (truth {summary['eol_fault_true']:.1f} s, paper 55 s); "
-        f"corrective action: {summary['eol_corrective']:.1f} s (truth {summary['eol_corrective_true']:.1f} s, paper 113 s); "
-        f"{summary['wall_time_s']} s; wrote {args.out}/report.md"
-    )
+    print(f"{headline(summary)}; {summary['wall_time_s']} s; wrote {args.out}/report.md")
     return 0
 
 

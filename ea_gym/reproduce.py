@@ -180,6 +180,15 @@ def _number(value: float | None, unit: str = "s") -> str:
     return "-" if value is None else f"{value:.1f} {unit}"
 
 
+def headline(summary: dict[str, Any]) -> str:
+    """One line of the headline run's End of Life beside the truth and the paper, or why it has none."""
+    run = summary["runs"][summary["headline_run"]]
+    cells = []
+    for cause, key, paper in (("fault", "eol_fault", 55), ("corrective action", "eol_corrective", 113)):
+        cells.append(f"{cause}: {_eol_cell(run, summary[key])} (truth {summary[key + '_true']:.1f} s, paper {paper} s)")
+    return f"End of Life, {'; '.join(cells)}"
+
+
 def _isolation_mark(run: dict[str, Any]) -> str:
     """Why a run has no End of Life in the tables: "isolated b, wrong", "undecided, m favoured", "not detected"."""
     if run["isolation"] == "wrong":

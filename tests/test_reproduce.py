@@ -1,6 +1,6 @@
 """The reproduction report: only runs that isolated the true faulty parameter show an End of Life."""
 
-from ea_gym.reproduce import PAPER_TABLE_3, PhaseEoL, report_markdown, run_record
+from ea_gym.reproduce import PAPER_TABLE_3, PhaseEoL, headline, report_markdown, run_record
 
 
 def _results(isolated, outcome, favoured):
@@ -19,7 +19,8 @@ def _summary():
         "wrong": run_record(_results("b", "wrong", "b"), fault, corrective),
         "undecided": run_record(_results(None, "undecided", "m"), fault, corrective),
     }
-    return {"eol_fault_true": 55.0, "eol_corrective_true": 118.5, "paper_table_3": PAPER_TABLE_3, "runs": runs,
+    return {"eol_fault_true": 55.0, "eol_fault": runs["right"]["eol_fault"], "eol_corrective": runs["right"]["eol_corrective"],
+            "headline_run": "right", "eol_corrective_true": 118.5, "paper_table_3": PAPER_TABLE_3, "runs": runs,
             "isolation_training": None, "wall_time_s": 1.0}
 
 
@@ -42,3 +43,12 @@ def test_table_3_marks_wrong_and_undecided_runs_instead_of_their_end_of_life():
     assert "| isolated b, wrong |" in wrong and "57.3" not in wrong
     (undecided,) = [line for line in lines if line.startswith("| [undecided]")]
     assert "| undecided, m favoured |" in undecided and "57.3" not in undecided
+
+
+def test_the_headline_says_why_a_run_has_no_end_of_life():
+    summary = _summary()
+    assert headline(summary) == (
+        "End of Life, fault: 57.3 s (truth 55.0 s, paper 55 s); corrective action: 121.7 s (truth 118.5 s, paper 113 s)"
+    )
+    summary.update(headline_run="wrong", eol_fault=None, eol_corrective=None)
+    assert headline(summary).startswith("End of Life, fault: - (isolated b, wrong) (truth 55.0 s, paper 55 s)")
