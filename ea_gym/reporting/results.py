@@ -1,11 +1,13 @@
 """Results of one scenario run through the PHM chain, and their metrics against the ground truth (paper 4.3-4.4).
 
 :func:`chain_results` turns a :class:`~ea_gym.phm.ChainRun` into JSON-ready results: detection time,
-isolated parameter and class probabilities, the isolated parameter's estimate over time, every End of
-Life prediction, and, when the scenario has a fault, the metrics against the ground truth: estimation
-errors, detection delay, whether isolation is correct, and per phase of the fault profile the End of
-Life errors and the Saxena et al. (2010) prognostic metrics on the RUL. Everything is read from the
-chain's per-step records (:class:`~ea_gym.phm.HealthStatus`): nothing the chain decided is re-derived.
+isolated parameter (None when the chain ends undecided) with the chain's fused class probabilities that
+chose it (the isolation network's own output beside them, named as such), the isolated parameter's
+estimate over time, every End of Life prediction, and, when the scenario has a fault, the metrics
+against the ground truth: estimation errors, detection delay, how isolation ended (right, wrong,
+undecided), and per phase of the fault profile the End of Life errors and the Saxena et al. (2010)
+prognostic metrics on the RUL. Everything is read from the chain's per-step records
+(:class:`~ea_gym.phm.HealthStatus`): nothing the chain decided is re-derived.
 
 The ground-truth End of Life at a time t is the one a perfect degree-1 extrapolation of the true
 parameter predicts there (:meth:`PiecewiseLinearProfile.trend_end_of_life`): the current segment of
