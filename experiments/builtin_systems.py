@@ -14,7 +14,7 @@ Recorded per system and parameter:
 * isolated at the end: runs whose ``isolated`` parameter at the last step is the ramped one;
 * right suspect: share of the post-detection steps (pooled over runs) whose ``isolated`` parameter is it;
 * largest wrong belief: the largest belief (fused ``diagnosis``) ever put on another component
-  (target: never >= 0.8);
+  (target: never >= 0.8); run-steps whose belief is not finite (NaN) are counted apart;
 * estimate error: median over post-detection steps of |estimate - truth| / nominal for the ramped
   parameter, the truth taken at the time the estimate describes (``ParameterEstimates.time``);
 * fault-free: runs that raised an alarm (target: none).
@@ -117,7 +117,8 @@ def parameter_metrics(model: SystemModel, rows: Sequence[int], j: int, statuses:
     return {
         "runs": len(rows), "detected": float(alarm[-1].mean()), "isolated": float(np.mean(isolated[-1] == right)),
         "right_suspect": float(np.mean(isolated[alarm] == right)) if alarm.any() else None,
-        "wrong_belief": float(wrong.max()) if wrong.size else 0.0,
+        "wrong_belief": float(np.nanmax(wrong, initial=0.0)),
+        "invalid_belief_steps": int(np.sum(~np.isfinite(belief).all(-1))),
         "estimate_error": float(np.median(errors)) if errors else None,
         "detection_time": float(np.nanmedian([s for s in statuses[-1].detection_time[rows]])) if alarm[-1].any() else None,
     }
@@ -134,7 +135,7 @@ def system_metrics(system: str, rows: list[tuple[str | None, float]], statuses: 
     ever = np.any(np.stack([s.alarm[free] for s in statuses]), axis=0)
     result["fault_free"] = {
         "runs": len(free), "alarms": int(ever.sum()),
-        "largest_fault_belief": float(np.max(np.stack([s.diagnosis[free, 1:] for s in statuses]))),
+        "largest_fault_belief": float(np.nanmax(np.stack([s.diagnosis[free, 1:] for s in statuses]), initial=0.0)),
     }
     return result
 
@@ -166,6 +167,7 @@ def table(result: dict[str, Any]) -> str:
     for system, s in result["systems"].items():
         for name, m in s["parameters"].items():
             flag = " (!)" if m["wrong_belief"] >= TARGETS["wrong_belief"] else ""
+            flag += f" ({m['invalid_belief_steps']} run-steps NaN)" if m["invalid_belief_steps"] else ""
             lines.append(
                 f"| {system} | {name} | {m['detected']:.2f} | {m['isolated']:.2f} | {cell(m['right_suspect'], '.2f')} "
                 f"| {m['wrong_belief']:.2f}{flag} | {cell(m['estimate_error'], '.3f')} | |"

@@ -16,7 +16,8 @@ from the environment's public API (the observation's ``rul``: point, low, high, 
 * relative error |rul_hat - rul_true| / rul_true, median per fault type (no prediction: rul_hat at
   rul_max, a large error);
 * coverage: share of steps whose interval [low, high] holds rul_true, an interval reaching rul_max
-  (unbounded, or no prediction) counted as a miss;
+  (unbounded, or no prediction) counted as a miss; beside it the share of steps with a prediction and
+  with a bounded interval;
 * Spearman's rank correlation of rul_hat with rul_true, per fault type and pooled over all three.
 
 Targets (issue 17): median relative error <= 0.2 and coverage >= 0.9 for each fault type, pooled
@@ -86,7 +87,10 @@ def rul_metrics(steps: PastHalfway, rul_max: float) -> dict[str, Any]:
     Spearman's rank correlation over ``steps``; None where there are no steps."""
     n = len(steps.rul_true)
     if n == 0:
-        return {"steps": 0, "episodes": steps.episodes, "median_relative_error": None, "coverage": None, "spearman": None, "predicted": None}
+        return {
+            "steps": 0, "episodes": steps.episodes, "median_relative_error": None, "coverage": None, "spearman": None, "predicted": None,
+            "bounded": None,
+        }
     relative = np.abs(steps.rul - steps.rul_true) / steps.rul_true
     bounded = steps.high < rul_max
     covered = bounded & (steps.low <= steps.rul_true) & (steps.rul_true <= steps.high)
@@ -94,6 +98,7 @@ def rul_metrics(steps: PastHalfway, rul_max: float) -> dict[str, Any]:
     return {
         "steps": n, "episodes": steps.episodes, "median_relative_error": float(np.median(relative)),
         "coverage": float(covered.mean()), "spearman": float(rho), "predicted": float(np.mean(steps.rul < rul_max)),
+        "bounded": float(bounded.mean()),
     }
 
 
@@ -167,13 +172,14 @@ def table(result: dict[str, Any]) -> str:
         f"(targets: median relative error <= {TARGETS['median_relative_error']}, coverage >= {TARGETS['coverage']}, "
         f"pooled Spearman >= {TARGETS['spearman']}; met: {'yes' if result['targets_met'] else 'no'}).",
         "",
-        "| fault | episodes past half-way | steps | RUL median relative error | interval covers truth | Spearman | steps with a prediction |",
-        "|---|---|---|---|---|---|---|",
+        "| fault | episodes past half-way | steps | RUL median relative error | interval covers truth | Spearman "
+        "| steps with a prediction | steps with a bounded interval |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     for name, m in [*result["faults"].items(), ("pooled", result["pooled"])]:
         lines.append(
             f"| {name} | {m['episodes']} | {m['steps']} | {cell(m['median_relative_error'], '.3f')} | {cell(m['coverage'], '.2f')} "
-            f"| {cell(m['spearman'], '.2f')} | {cell(m['predicted'], '.2f')} |"
+            f"| {cell(m['spearman'], '.2f')} | {cell(m['predicted'], '.2f')} | {cell(m['bounded'], '.2f')} |"
         )
     return "\n".join(lines) + "\n"
 

@@ -36,7 +36,7 @@ def test_rul_metrics_on_a_hand_case():
     assert m["coverage"] == 0.5
     # ranks (1, 2.5, 2.5, 4) against (1, 2, 3, 4): 4.5 / sqrt(4.5 * 5)
     assert m["spearman"] == pytest.approx(4.5 / np.sqrt(22.5))
-    assert (m["steps"], m["episodes"], m["predicted"]) == (4, 2, 0.75)
+    assert (m["steps"], m["episodes"], m["predicted"], m["bounded"]) == (4, 2, 0.75, 0.75)
     empty = estimates_in_env.rul_metrics(estimates_in_env.PastHalfway(*(np.zeros(0),) * 4, episodes=0), rul_max=1000.0)
     assert empty["median_relative_error"] is None and empty["steps"] == 0
 
