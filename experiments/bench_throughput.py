@@ -12,7 +12,10 @@ What it measures, in one run, on ``ea_gym/SpringMassDamper-v0`` with the full PH
 2. PPO training wall time for ``--ppo-steps`` steps with 16 environments: on the batched
    ``MaintenanceVecEnv`` and on stable-baselines3's ``SubprocVecEnv`` of single environments, same
    hyperparameters.
-3. A cProfile of the batched environment at N = 256: where the time goes.
+3. The batched environment at N = 256 in alarm: every fault arriving in the first second, no
+   maintenance, the EA inversion and the tracking filter (``PHMConfig.estimator_kind``) side by side,
+   timed in alternating blocks; the alarm share beside each (``--alarm-only`` runs this alone).
+4. A cProfile of the batched environment at N = 256: where the time goes.
 
 Run: ``python experiments/bench_throughput.py [--sizes 1 16 256 1024] [--json PATH]``.
 """
@@ -47,6 +50,7 @@ from ea_gym.files import write_json
 from ea_gym.threads import single_threaded_torch
 
 KWARGS: dict[str, Any] = {"obs_mode": "phm", "continue_after_failure": True}
+ALARM_WARMUP = 12  # env steps (5 s each) before the in-alarm regime is timed: faults past their detection
 
 
 def _alarm_share(env) -> float:
@@ -55,6 +59,11 @@ def _alarm_share(env) -> float:
         return float(unwrapped.core.chain.detector.state.alarm.mean())
     cores = [e.unwrapped.core for e in unwrapped.envs]
     return float(np.mean([c.chain.detector.state.alarm[0] for c in cores]))
+
+
+def _action_index(env, kind) -> int:
+    """The index of the batched environment's first action of ``kind`` (an ``ActionKind``)."""
+    return next(i for i, action in enumerate(env.unwrapped.actions) if action.kind is kind)
 
 
 def time_vector(kind: str, n: int, steps: int, warmup: int, seed: int) -> dict:
@@ -92,6 +101,40 @@ def time_single(steps: int, warmup: int, seed: int) -> dict:
     return {"env_steps_per_s": steps / wall, "batch_steps": steps, "wall_s": wall, "alarm_share": alarm}
 
 
+def time_in_alarm(n: int, steps: int, warmup: int, seed: int, kinds: Sequence[str], rounds: int = 3) -> dict:
+    """The batched environment at N with every system's fault arriving in its first second and no
+    maintenance (always carry on): most systems are in alarm, the chain's fault stages run everywhere.
+
+    One environment per estimator kind (``PHMConfig.estimator_kind``), the same seed; after ``warmup``
+    steps each, ``rounds`` blocks of ``steps`` steps alternate between them, so that a machine whose
+    load changes slows them alike. Returns per kind: env-steps/s over all its blocks and the alarm share.
+    """
+    from ea_gym.degradation import WearConfig
+    from ea_gym.env.events import ActionKind
+    from ea_gym.models import get_model
+    from ea_gym.phm import PHMConfig
+
+    wear = {name: WearConfig(arrival=(0.0, 1.0)) for name in get_model("spring_mass_damper").safe_limits}
+    envs = {kind: gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", obs_mode="phm",
+                               continue_after_failure=True, wear=wear, phm=PHMConfig(estimator_kind=kind)) for kind in kinds}
+    walls = dict.fromkeys(kinds, 0.0)
+    carry_on = np.full(n, _action_index(next(iter(envs.values())), ActionKind.CARRY_ON))
+    for env in envs.values():
+        env.reset(seed=seed)
+        for _ in range(warmup):
+            env.step(carry_on)
+    for _ in range(rounds):
+        for kind, env in envs.items():
+            started = time.perf_counter()
+            for _ in range(steps):
+                env.step(carry_on)
+            walls[kind] += time.perf_counter() - started
+    results = {kind: {"env_steps_per_s": n * steps * rounds / walls[kind], "alarm_share": _alarm_share(env)} for kind, env in envs.items()}
+    for env in envs.values():
+        env.close()
+    return results
+
+
 def time_ppo(kind: str, steps: int, seed: int) -> float:
     from stable_baselines3 import PPO
 
@@ -124,6 +167,22 @@ def profile_batched(n: int, steps: int, warmup: int, seed: int, top: int = 12) -
     return text.getvalue()
 
 
+def in_alarm(steps: int, seed: int) -> dict:
+    """The in-alarm regime at N = 256, both estimator kinds side by side; printed."""
+    results = time_in_alarm(256, steps, ALARM_WARMUP, seed, ("ea_inversion", "tracking"))
+    print(f"\nbatched env, N = 256, faults from the first second, no maintenance ({ALARM_WARMUP} steps in; old figure 1550 env-steps/s):")
+    for kind, r in results.items():
+        print(f"  {kind:>13}: {r['env_steps_per_s']:.0f} env-steps/s, alarm raised in {r['alarm_share']:.0%}")
+    return results
+
+
+def print_in_alarm(steps: int, seed: int, path: Path | None) -> int:
+    results = in_alarm(steps, seed)
+    if path:
+        write_json(path, {"in_alarm_n256": results})
+    return 0
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 16, 256, 1024], help="numbers of environments N")
@@ -133,7 +192,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--ppo-steps", type=int, default=16_384, help="PPO steps for the wall-time comparison (0: skip)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers as JSON")
+    parser.add_argument("--alarm-steps", type=int, default=10, help="timed batch steps per block of the in-alarm regime (0: skip)")
+    parser.add_argument("--alarm-only", action="store_true", help="only the in-alarm regime at N = 256")
     args = parser.parse_args(argv)
+    if args.alarm_only:
+        return print_in_alarm(args.alarm_steps, args.seed, args.json)
 
     print(f"machine: {platform.processor()!r}, {os.cpu_count()} cores, python {platform.python_version()}")
     results: dict = {"single": time_single(args.steps * 10, args.warmup, args.seed), "sync": {}, "batched": {}}
@@ -152,6 +215,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         speedup = results["ppo"]["subproc"] / results["ppo"]["batched"]
         print(f"\nPPO, {args.ppo_steps} steps, 16 envs: batched {results['ppo']['batched']:.1f} s, "
               f"SubprocVecEnv {results['ppo']['subproc']:.1f} s ({speedup:.2f}x)")
+    if args.alarm_steps:
+        results["in_alarm_n256"] = in_alarm(args.alarm_steps, args.seed)
     profile = profile_batched(256, 5, args.warmup, args.seed)
     results["profile_n256"] = profile
     print("\nbatched env, N = 256, 5 steps, by own time:\n" + profile)

@@ -6,7 +6,7 @@ has changed" (and "none") explains the measurements (its log evidence: for the E
 the running average of its log fit cost); and the energy balance of the last few seconds, regressed
 on the energies the components absorb, says how much worse it is explained with component j's
 column alone (:func:`balance_chi_square`). The belief in class j is the network's share of it (plus a
-floor) times exp(ll_j - ll_max) times exp(-(chi2_j - chi2_min) / 2), deflated: a network that cannot
+floor) times exp(ll_j - ll_max) times exp(-(chi2_j - chi2_min) / 2), deflated (summed in logs): a network that cannot
 yet tell a small fault apart does not outvote a hypothesis that the EA fits a hundred times better,
 and a young storage fault (which the balance pins to a tenth of a per cent) is not taken for the
 light damper, whose EA fit it can mimic.
@@ -160,8 +160,8 @@ class Isolation:
         return probabilities
 
     def balance_evidence(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
-        """Likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
-        evidence = np.ones((self.n, len(self.classes)))
+        """Log likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
+        evidence = np.zeros((self.n, len(self.classes)))
         rows = np.flatnonzero(alarm)
         if len(rows) == 0:
             return evidence
@@ -172,21 +172,23 @@ class Isolation:
         )
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
         # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
-        evidence[rows] = np.exp(-0.5 * (chi2 - chi2.min(1, keepdims=True)) / self.config.balance_inflation)
+        evidence[rows] = -0.5 * (chi2 - chi2.min(1, keepdims=True)) / self.config.balance_inflation
         return evidence
 
     def fuse(self, alarm: np.ndarray, log_evidence: np.ndarray, estimated: np.ndarray, balance: np.ndarray) -> Fusion:
-        """The belief (N, K) from the network's average, the estimator's log evidence (N, K) and the balance
-        evidence (N, K); sets the suspect. ``estimated`` (N, D): the hypotheses the estimator updated at this step."""
+        """The belief (N, K) from the network's average, the estimator's log evidence (N, K) and the balance's
+        log evidence (N, K); sets the suspect. ``estimated`` (N, D): the hypotheses the estimator updated at this step."""
         s = self.state
         K = len(self.classes)
         total = s.probability_average.sum(1, keepdims=True)
         # before the network's first frame its belief is uniform: the fits alone decide
         network = np.where(total > 0, s.probability_average / np.where(total > 0, total, 1.0), 1.0 / K)
         best = np.max(log_evidence, axis=1, initial=-np.inf, where=np.isfinite(log_evidence))
-        evidence = np.exp(log_evidence - best[:, None])
-        evidence = np.where(np.isfinite(evidence), evidence, 1.0)  # a hypothesis not yet fitted: no evidence either way
-        belief = (network + self.config.network_floor) * evidence * balance
+        evidence = log_evidence - best[:, None]
+        evidence = np.where(np.isfinite(evidence), evidence, 0.0)  # a hypothesis not yet fitted: no evidence either way
+        # in logs: evidence a thousand nats apart must not underflow every class to 0
+        log_belief = np.log(network + self.config.network_floor) + evidence + balance
+        belief = np.exp(log_belief - log_belief.max(1, keepdims=True))
         believed = alarm & (np.any(np.isfinite(log_evidence[:, 1:]), axis=1) | (total[:, 0] > 0))
         diagnosis = np.where(believed[:, None], belief / belief.sum(1, keepdims=True), np.eye(K)[0])
         isolated = np.where(believed, 1 + np.argmax(diagnosis[:, 1:], axis=1), 0)
