@@ -53,7 +53,7 @@ class PHMConfig:
     isolation_confidence: float = 0.75
     balance_evidence_span: float = 10.0
     balance_inflation: float = 4.0
-    estimator_kind: str = "ea_inversion"
+    estimator_kind: str = "tracking"
     monitor: MonitorConfig = field(default_factory=MonitorConfig)
     detector: DetectorConfig = field(default_factory=DetectorConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)

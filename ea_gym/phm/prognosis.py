@@ -216,7 +216,7 @@ def drift_end_of_life(
     margin = sign * (limit - value)  # distance still to go, toward the limit (> 0 before it)
     rate = sign * drift
     v_tt, v_dd = covariance[..., 0, 0], covariance[..., 1, 1]
-    v_td = sign * covariance[..., 0, 1] + 0.5 * np.asarray(diffusion, dtype=float)
+    v_td = covariance[..., 0, 1] + 0.5 * np.asarray(diffusion, dtype=float)  # var(theta + drift tau) is sign-free
     with np.errstate(divide="ignore", invalid="ignore"):
         tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
         z = float(ndtri(0.5 + 0.5 * confidence))
