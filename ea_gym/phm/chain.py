@@ -114,11 +114,11 @@ class PHMChain:
         self.step_time = config.update_time
         self.detector = Detector(thresholds, config.detector, self.monitor, config.step, n_systems)
         self.thresholds = self.detector.thresholds
-        self.isolation = Isolation(classifier, self.monitor, config, self.classes, n_systems)
-        self.frame_steps = self.isolation.frame_steps
         # the estimator and the prognosis that reads it come together (``PHMConfig.estimator_kind``)
         stages = make_stages(config.estimator_kind, model, self.monitor, config, n_systems)
         self.estimator, self.prognosis = stages.estimator, stages.prognosis
+        self.isolation = Isolation(classifier, self.monitor, config, self.classes, n_systems, stages.weights)
+        self.frame_steps = self.isolation.frame_steps
         if tuple(self.estimator.degradable) != self.degradable:
             raise ValueError(f"the estimator's parameters {self.estimator.degradable} are not the classifier's {self.degradable}")
         self.estimate_steps, self.estimate_lag = self.estimator.warmup_steps, self.estimator.lag

@@ -61,6 +61,21 @@ def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, 
     return chi2
 
 
+@dataclass(frozen=True)
+class EvidenceWeights:
+    """The exponents of the three kinds of evidence's likelihood ratios in the belief (1: as they are).
+
+    A log-likelihood summed over thousands of correlated samples (the tracking filters': their
+    innovations are correlated through the model's errors) is tempered by a weight below 1, so that
+    a stretch of a few seconds cannot lock a verdict; the balance summarises the same signals the
+    filters' likelihood holds, and an early network frame is often wrong: they count less beside it.
+    """
+
+    estimator: float = 1.0
+    network: float = 1.0
+    balance: float = 1.0
+
+
 @dataclass
 class IsolationState:
     """Per system: the network's running average since the alarm (N, K), the suspect's class index (0 while
@@ -112,10 +127,15 @@ class Isolation:
         config: the chain's settings.
         classes: "none" then the degradable parameters.
         n_systems: N.
+        weights: the network's and the balance's weights beside the estimator's evidence.
     """
 
-    def __init__(self, classifier: FaultClassifier, monitor: Monitor, config: PHMConfig, classes: tuple[str, ...], n_systems: int):
+    def __init__(
+        self, classifier: FaultClassifier, monitor: Monitor, config: PHMConfig, classes: tuple[str, ...], n_systems: int,
+        weights: EvidenceWeights = EvidenceWeights(),
+    ):
         self.classifier = classifier
+        self.weights = weights
         self.monitor = monitor
         self.config = config
         self.classes = classes
@@ -184,10 +204,10 @@ class Isolation:
         # before the network's first frame its belief is uniform: the fits alone decide
         network = np.where(total > 0, s.probability_average / np.where(total > 0, total, 1.0), 1.0 / K)
         best = np.max(log_evidence, axis=1, initial=-np.inf, where=np.isfinite(log_evidence))
-        evidence = log_evidence - best[:, None]
+        evidence = self.weights.estimator * (log_evidence - best[:, None])
         evidence = np.where(np.isfinite(evidence), evidence, 0.0)  # a hypothesis not yet fitted: no evidence either way
         # in logs: evidence a thousand nats apart must not underflow every class to 0
-        log_belief = np.log(network + self.config.network_floor) + evidence + balance
+        log_belief = self.weights.network * np.log(network + self.config.network_floor) + evidence + self.weights.balance * balance
         belief = np.exp(log_belief - log_belief.max(1, keepdims=True))
         believed = alarm & (np.any(np.isfinite(log_evidence[:, 1:]), axis=1) | (total[:, 0] > 0))
         diagnosis = np.where(believed[:, None], belief / belief.sum(1, keepdims=True), np.eye(K)[0])
