@@ -115,7 +115,7 @@ def test_no_false_alarm_on_a_fault_free_run_at_one_percent_noise():
 
 
 def test_isolation_follows_the_hypothesis_the_ea_fits_when_the_network_is_unsure():
-    chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
+    chain = build_chain(MODEL, PHMConfig(estimator_kind="ea_inversion"), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
     isolation = chain.isolation
     alarm = np.ones(2, dtype=bool)
     assert chain.classes == ("none", "k", "m", "b") and chain.degradable == ("k", "m", "b")
@@ -353,7 +353,7 @@ def test_recorded_signals_run_through_the_chain_against_a_simulated_nominal_refe
 def test_the_estimator_is_chosen_by_name_and_a_reset_rewrites_only_its_systems_rows():
     with pytest.raises(ValueError, match="estimator_kind"):
         PHMConfig(estimator_kind="kalman")
-    chain = build_chain(MODEL, PHMConfig(), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
+    chain = build_chain(MODEL, PHMConfig(estimator_kind="ea_inversion"), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
     assert isinstance(chain.estimator, EAInversionEstimator)
     chain.detector.state.alarm[:] = True
     chain.estimator.state.estimates[:] = 1.0

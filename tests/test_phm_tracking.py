@@ -127,3 +127,23 @@ def test_undecided_hypotheses_give_no_end_of_life() -> None:
     record = estimates(value, drift, np.full((1, 3), 1e-6), np.full((1, 3), 1e-10), np.zeros((1, 3)), np.full(1, 40.0))
     out = chain.prognosis.update(record, fusion.isolated, fusion.confident, np.full(1, 40.0))
     assert out.end_of_life[0] is None and math.isinf(out.eol[0])
+
+
+def test_corrective_actions_move_the_tracked_estimate_once() -> None:
+    """The environment logs a corrective action's change; the filter, whose signals see the plant move
+    too, follows it without counting it twice."""
+    import gymnasium as gym
+
+    import ea_gym  # noqa: F401 - registers the environments
+    from ea_gym.degradation import WearConfig
+
+    wear = {"k": WearConfig(direction=-1, rate=(0.0, 0.0), arrival=(0.0, 0.0))}
+    env = gym.make("ea_gym/SpringMassDamper-v0", wear=wear, corrective_rate=0.02)
+    env.reset(seed=0)
+    chain = env.unwrapped.core.chain
+    k = chain.degradable.index("k")
+    for _ in range(3):
+        env.step(1 + env.unwrapped.maintainable_components.index("k"))
+    for _ in range(5):
+        env.step(0)
+    assert chain.estimator.estimates(np.zeros(1)).value[0, k] == pytest.approx(101.2, abs=0.1)
