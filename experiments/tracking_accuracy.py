@@ -31,10 +31,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import get_model
 from ea_gym.phm.estimation import StepSignals
+from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import add_sensor_noise, measure
-from ea_gym.tracking import TrackingConfig, TrackingEstimator
 
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")

@@ -16,9 +16,10 @@ from ea_gym.loads import Sine, SinesLoad
 from ea_gym.models import get_model, spring_mass_damper
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.estimation import ParameterEstimator, StepSignals
+from ea_gym.phm.prognosis import drift_end_of_life
+from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 from ea_gym.plant import run_model
 from ea_gym.sensors import measure
-from ea_gym.tracking import TrackingConfig, TrackingEstimator, drift_end_of_life
 
 RATE = 100.0
 

@@ -2,7 +2,8 @@
 
 monitor (``ea_gym.diagnosis.monitor``) -> :mod:`~ea_gym.phm.detection` -> :mod:`~ea_gym.phm.isolation`
 (network, balance evidence) -> :mod:`~ea_gym.phm.estimation` (the ``ParameterEstimator`` seam; the EA
-inversion of :mod:`~ea_gym.phm.inversion`; :mod:`~ea_gym.phm.estimators` pairs each estimator kind
+inversion of :mod:`~ea_gym.phm.inversion`, the tracking filters of :mod:`~ea_gym.phm.tracking`;
+:mod:`~ea_gym.phm.estimators` pairs each estimator kind
 with its prognosis) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
 :mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
 runs scenarios and recorded signals through a chain.
@@ -20,7 +21,7 @@ from ea_gym.phm.estimation import (
 from ea_gym.phm.estimators import ESTIMATORS, EstimationStages, make_stages
 from ea_gym.phm.harness import ChainRun, build_chain, classifier_for, run_scenario, run_signals
 from ea_gym.phm.inversion import EAInversion, EstimatorConfig
-from ea_gym.phm.isolation import balance_chi_square
+from ea_gym.phm.isolation import EvidenceWeights, balance_chi_square
 from ea_gym.phm.prognosis import (
     DriftPrognosis,
     EndOfLife,
@@ -31,6 +32,7 @@ from ea_gym.phm.prognosis import (
     drift_end_of_life,
     predict_end_of_life,
 )
+from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 
 __all__ = [
     "ESTIMATORS",
@@ -41,6 +43,7 @@ __all__ = [
     "DriftPrognosis",
     "EndOfLife",
     "EstimationStages",
+    "EvidenceWeights",
     "EstimatorConfig",
     "ExtrapolationConfig",
     "HealthStatus",
@@ -50,6 +53,8 @@ __all__ = [
     "ParameterEstimator",
     "PrognosisStage",
     "StepSignals",
+    "TrackingConfig",
+    "TrackingEstimator",
     "TrendFit",
     "TrendPrognosis",
     "balance_chi_square",

@@ -9,6 +9,7 @@ from ea_gym.phm.detection import DetectorConfig
 from ea_gym.phm.estimators import ESTIMATORS
 from ea_gym.phm.inversion import EstimatorConfig
 from ea_gym.phm.prognosis import ExtrapolationConfig
+from ea_gym.phm.tracking import TrackingConfig
 
 
 @dataclass(frozen=True)
@@ -40,6 +41,7 @@ class PHMConfig:
             "tracking", a Kalman filter per hypothesis tracking the parameter and its drift, the drift
             carried to the limits; "ea_inversion", the paper's EA inversion with a median filter, its
             trend extrapolated.
+        tracking: the tracking filters' settings (process noise, priors, the evidence's memory).
     """
 
     step: float = 1.0
@@ -58,6 +60,7 @@ class PHMConfig:
     detector: DetectorConfig = field(default_factory=DetectorConfig)
     estimator: EstimatorConfig = field(default_factory=EstimatorConfig)
     extrapolation: ExtrapolationConfig = field(default_factory=ExtrapolationConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
 
     def __post_init__(self) -> None:
         if self.estimator_kind not in ESTIMATORS:

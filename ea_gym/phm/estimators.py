@@ -5,7 +5,7 @@ the prognosis stage that reads it.
   (:class:`~ea_gym.phm.estimation.EAInversionEstimator`), its recent estimates' polynomial trend
   extrapolated to the limits (:class:`~ea_gym.phm.prognosis.TrendPrognosis`).
 * "tracking": a bank of Kalman filters, one per hypothesis, tracking each parameter and its drift
-  (:class:`~ea_gym.tracking.TrackingEstimator`), the drift carried to the limits with its covariance
+  (:class:`~ea_gym.phm.tracking.TrackingEstimator`), the drift carried to the limits with its covariance
   (:class:`~ea_gym.phm.prognosis.DriftPrognosis`).
 """
 
@@ -20,6 +20,7 @@ from ea_gym.models import SystemModel
 from ea_gym.phm.estimation import EAInversionEstimator, ParameterEstimator
 from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import DriftPrognosis, PrognosisStage, TrendPrognosis
+from ea_gym.phm.tracking import TrackingEstimator
 
 if TYPE_CHECKING:
     from ea_gym.phm.config import PHMConfig
@@ -45,7 +46,7 @@ def ea_inversion_stages(model: SystemModel, monitor: Monitor, config: PHMConfig,
 
 
 #: The tracking route's isolation evidence. The filters' log-likelihoods forget with a 20 s memory (a
-#: noisy stretch fades) and count 1/20 (the innovations' errors are correlated through model error);
+#: noisy stretch fades; ``TrackingConfig.evidence_memory``) and count 1/20 (the innovations' errors are correlated through model error);
 #: the network counts 1/4 and the balance 1/10: at a dc_motor bm fault's alarm the balance alone put
 #: 0.92 on K, an early network frame up to 1.00 on bm for a J fault. Chosen on random-load runs of
 #: rlc_circuit and dc_motor (1 % noise; 10 per parameter at seed 7, then 20 at seed 2 where the first
@@ -53,16 +54,12 @@ def ea_inversion_stages(model: SystemModel, monitor: Monitor, config: PHMConfig,
 #: {1, 1/3, 1/10, 1/20, 1/30, 1/100} x network {1, 1/2, 1/4} x balance {1, 1/2, 1/4, 1/10, 0}: largest
 #: wrong belief 0.65 / 0.58 (dc_motor seeds 2 / 7), 0.31 (spring_mass_damper), right suspect in
 #: 0.99 of the steps after the alarm, every run right at the end.
-TRACKING_EVIDENCE_MEMORY = 20.0
 TRACKING_WEIGHTS = EvidenceWeights(estimator=0.05, network=0.25, balance=0.1)
 
 
 def tracking_stages(model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> EstimationStages:
     """The tracking filter bank and its drift carried to the limits."""
-    from ea_gym.tracking import TrackingConfig, TrackingEstimator
-
-    settings = TrackingConfig(evidence_memory=TRACKING_EVIDENCE_MEMORY)
-    estimator = TrackingEstimator(model, config.sample_rate, config.noise, n_systems, config=settings)
+    estimator = TrackingEstimator.from_chain(model, monitor, config, n_systems)
     prognosis = DriftPrognosis(model, estimator.degradable, config.extrapolation, estimator.diffusion, n_systems)
     return EstimationStages(estimator, prognosis, TRACKING_WEIGHTS)
 

@@ -31,7 +31,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.polynomial import chebyshev
-from scipy.special import ndtri
 
 from ea_gym._kernels.tracking import track
 from ea_gym.bondgraph.elements import Kind
@@ -39,6 +38,7 @@ from ea_gym.bondgraph.simulation import discretize
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.models import SystemModel
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.phm.prognosis import drift_end_of_life
 
 if TYPE_CHECKING:
     from ea_gym.diagnosis.monitor import Monitor
@@ -60,7 +60,9 @@ class TrackingConfig:
             measurement noise variance (covers the Hermite input's and the midpoint hold's small errors).
         theta_prior: std of theta at the start (the part is nominal, up to its tolerance).
         drift_prior: std of the drift at the start (1/s).
-        evidence_memory: time constant (s) of the log-likelihoods' forgetting; inf: none.
+        evidence_memory: time constant (s) of the log-likelihoods' forgetting (the isolation evidence):
+            20 s, so that a noisy stretch fades and a fault's evidence of the last frame or so decides
+            (chosen with the chain's evidence weights, ``ea_gym.phm.estimators``); inf: none.
         min_noise: floor of the measurement noise fraction, which keeps noise-free signals well posed.
     """
 
@@ -69,7 +71,7 @@ class TrackingConfig:
     state_noise: float = 0.0
     theta_prior: float = 1e-3
     drift_prior: float = 1e-4
-    evidence_memory: float = math.inf
+    evidence_memory: float = 20.0
     min_noise: float = 1e-4
 
     def __post_init__(self) -> None:
@@ -220,8 +222,8 @@ class TrackingEstimator:
 
     @classmethod
     def from_chain(cls, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> TrackingEstimator:
-        """The chain's tracking estimator (the ``ESTIMATORS`` constructor's arguments): its sample rate and noise level."""
-        return cls(model, config.sample_rate, config.noise, n_systems)
+        """The chain's tracking estimator: its sample rate, noise level and ``PHMConfig.tracking`` settings."""
+        return cls(model, config.sample_rate, config.noise, n_systems, config=config.tracking)
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Start over for all systems, or those where the boolean mask (N,) is true: their filters
@@ -339,54 +341,3 @@ class TrackingEstimator:
         times = np.repeat(np.asarray(t, dtype=float)[:, None], len(self.degradable), 1)
         return drift_end_of_life(self.z[:, 1:, nx], self.z[:, 1:, nx + 1], self.covariance(), limits, times, confidence, self.diffusion)
 
-
-def drift_end_of_life(
-    value: np.ndarray, drift: np.ndarray, covariance: np.ndarray, limits: np.ndarray, t: np.ndarray, confidence: float = 0.95,
-    diffusion: np.ndarray | float = 0.0,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """End of Life where theta + drift (s - t) reaches the safe limit it heads for, with its interval.
-
-    theta and drift are jointly Gaussian (``covariance``) and theta goes on diffusing (a random walk of
-    ``diffusion`` unit^2/s), so at a horizon tau the parameter is N(theta + drift tau, var_theta +
-    tau (2 cov + diffusion) + tau^2 var_drift), and P(limit crossed by tau) is a normal CDF. The
-    interval's ends are the horizons where that probability is (1 -+ confidence) / 2: the roots of a
-    quadratic in tau, bounded above only when the drift is resolved (|drift| / its std
-    above the confidence's z, about 2).
-
-    Args:
-        value, drift: (...,) the parameter (its unit) and its drift (unit/s).
-        covariance: (..., 2, 2) of (theta, drift).
-        limits: (..., 2) the (lower, upper) safe limits.
-        t: (...,) the time the values describe (s).
-        diffusion: (...,) or a number: variance per second of theta's random walk from now on (unit^2/s).
-
-    Returns:
-        eol, eol_low, eol_high (s), each (...,); inf where the limit is not approached (or not surely).
-    """
-    value, drift = np.asarray(value, dtype=float), np.asarray(drift, dtype=float)
-    limits, t = np.asarray(limits, dtype=float), np.asarray(t, dtype=float)
-    upward = drift >= 0
-    limit = np.where(upward, limits[..., 1], limits[..., 0])
-    sign = np.where(upward, 1.0, -1.0)
-    margin = sign * (limit - value)  # distance still to go, toward the limit (> 0 before it)
-    rate = sign * drift
-    v_tt, v_dd = covariance[..., 0, 0], covariance[..., 1, 1]
-    v_td = sign * covariance[..., 0, 1] + 0.5 * np.asarray(diffusion, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
-        z = float(ndtri(0.5 + 0.5 * confidence))
-        # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td
-        a = rate**2 - z**2 * v_dd
-        b = -2.0 * rate * margin - 2.0 * z**2 * v_td
-        c = margin**2 - z**2 * v_tt
-        root = np.sqrt(np.maximum(b**2 - 4.0 * a * c, 0.0))
-        linear = -c / b
-        r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
-        small, large = np.minimum(r1, r2), np.maximum(r1, r2)
-        # a > 0: both ends finite, the smaller root the low one; a < 0: the roots straddle 0, the
-        # positive one the low end and no high end
-        low = np.where(a > 0, small, np.where(a < 0, large, linear))
-        low = np.where(c <= 0, 0.0, np.maximum(low, 0.0))
-        high = np.where(a > 0, np.maximum(large, 0.0), np.inf)
-        high = np.where((margin < 0) & (c > 0), 0.0, high)  # surely past the limit already
-    return t + tau, t + low, t + high
