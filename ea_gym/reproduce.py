@@ -147,6 +147,7 @@ def reproduce(
         "eol_corrective_true": headline["eol_corrective_true"],
         "paper_table_3": PAPER_TABLE_3,
         "headline_run": "persistent_noise1",
+        "estimator": PHMConfig().estimator_kind,
         "runs": runs,
         "isolation_training": training_summary,
         "wall_time_s": None,
@@ -203,6 +204,13 @@ def _eol_cell(run: dict[str, Any], eol: float | None) -> str:
     return _number(eol) if run["isolation"] == "right" else f"- ({_isolation_mark(run)})"
 
 
+# how each estimator kind estimates and extrapolates, for the report's first paragraph
+ESTIMATOR_ROUTES = {
+    "tracking": "a Kalman filter per hypothesis tracking the parameter and its drift, the drift carried to the safe limits",
+    "ea_inversion": "the paper's EA inversion, its recent estimates' degree-1 trend extrapolated to the safe limits",
+}
+
+
 def report_markdown(summary: dict[str, Any]) -> str:
     """The reproduction report: Table 3 beside ours, every run, the information the loads carry."""
     runs = summary["runs"]
@@ -211,8 +219,9 @@ def report_markdown(summary: dict[str, Any]) -> str:
         "",
         "System of Table 2 (m = 10 kg, k = 100 N/m in [85, 105], b = 0.5 N s/m), fault of Fig 10: k falls from "
         "100 N/m at 5 s at 0.3 N/m/s, a corrective action at 50 s brings it back linearly to 100 N/m at 100 s. "
-        "Detection, isolation (the neural network on EA-residual features), EA-inversion estimate of k, degree-1 "
-        "extrapolation to the safe limits.",
+        "Detection, isolation (the neural network on EA-residual features, fused with the estimator's and the "
+        f"energy balance's evidence), the estimate of k by the `{summary['estimator']}` estimator "
+        f"(`PHMConfig.estimator_kind`: {ESTIMATOR_ROUTES[summary['estimator']]}).",
         "",
         "## End of Life (Table 3)",
         "",

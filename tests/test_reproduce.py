@@ -20,7 +20,7 @@ def _summary():
         "undecided": run_record(_results(None, "undecided", "m"), fault, corrective),
     }
     return {"eol_fault_true": 55.0, "eol_fault": runs["right"]["eol_fault"], "eol_corrective": runs["right"]["eol_corrective"],
-            "headline_run": "right", "eol_corrective_true": 118.5, "paper_table_3": PAPER_TABLE_3, "runs": runs,
+            "headline_run": "right", "estimator": "tracking", "eol_corrective_true": 118.5, "paper_table_3": PAPER_TABLE_3, "runs": runs,
             "isolation_training": None, "wall_time_s": 1.0}
 
 
@@ -35,6 +35,7 @@ def test_run_record_keeps_an_end_of_life_only_from_a_run_isolated_right():
 
 def test_table_3_marks_wrong_and_undecided_runs_instead_of_their_end_of_life():
     lines = report_markdown(_summary()).splitlines()
+    assert any("the `tracking` estimator" in line for line in lines)  # the report names the estimator that ran
     (fault,) = [line for line in lines if line.startswith("| fault |")]
     assert fault.endswith("| 57.3 s | - (isolated b, wrong) | - (undecided, m favoured) |")
     (corrective,) = [line for line in lines if line.startswith("| corrective action |")]
