@@ -276,13 +276,14 @@ class TrackingEstimator:
             raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
         variance = self.measurement_variance(measured)
         t = np.asarray(signals.t, dtype=float)
-        fresh = np.flatnonzero(~self.started)
+        running = self.started.copy()  # the filters that ran before this step
+        fresh = np.flatnonzero(~running)
         if len(fresh):
             self.start(fresh, measured[fresh], variance[fresh])
         # a step may stand for more (degradation) time than its signals last (the environment's
         # step_seconds > window): the plant's parameters then hold over each window and move between
         # windows, so the filters carry theta over the step's whole span before its signals, not within
-        span = np.where(self.started & ~np.isin(np.arange(n), fresh), t - self.clock, 0.0)
+        span = np.where(running, t - self.clock, 0.0)
         held = span > (measured.shape[2] - 1) * self.h * (1.0 + 1e-9)
         if np.any(held):
             self.advance_clock(np.where(held, span, 0.0))
@@ -293,7 +294,7 @@ class TrackingEstimator:
             np.where(held, 0.0, self.h), np.arange(n), measured, np.ascontiguousarray(signals.load, dtype=float),
             np.ascontiguousarray(signals.load_rate, dtype=float), variance, self.z, self.P, self.log_likelihood,
         )
-        return self.estimates(np.asarray(signals.t, dtype=float))
+        return self.estimates(t)
 
     def advance_clock(self, gap: np.ndarray) -> None:
         """Carry every filter's parameter over ``gap`` (N,) seconds without signals: theta += drift gap,
