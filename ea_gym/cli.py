@@ -9,7 +9,7 @@ from importlib.metadata import entry_points
 from pathlib import Path
 
 from ea_gym.cli_args import COMMAND_GROUP, Subcommands, positive_float
-from ea_gym.models import ParameterError
+from ea_gym.models import ParameterError, SystemModel
 from ea_gym.scenario import ScenarioError
 
 
@@ -20,7 +20,7 @@ def _simulate(args: argparse.Namespace) -> int:
     from ea_gym.plots import plot_energy
     from ea_gym.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, args.system)
     trajectory = simulate(scenario)
     energy = windowed_energy(
         trajectory.power, trajectory.sample_period, args.window, scenario.model.rco_elements
@@ -45,7 +45,7 @@ def _phm(args: argparse.Namespace) -> int:
     from ea_gym.reporting import write_phm_outputs
     from ea_gym.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, args.system)
     rng = np.random.default_rng(scenario.sensor_seed)
     model = scenario.model
     classifier = classifier_for(model, rng, args.classifier)
@@ -56,6 +56,54 @@ def _phm(args: argparse.Namespace) -> int:
     isolated = results["isolated_parameter"]
     print(f"detection at {results['detection_time']} s, isolated parameter {isolated}; wrote {args.out}/results.json and report.md")
     return 0
+
+
+def _models(args: argparse.Namespace) -> int:
+    from ea_gym.models import MODELS, get_model
+
+    for name in MODELS:
+        model = get_model(name)
+        print(f"{name}: {model.description}")
+        print("\n".join(_parameter_lines(model)))
+    return 0
+
+
+def _model(args: argparse.Namespace) -> int:
+    from ea_gym.bondgraph import Kind
+    from ea_gym.model_files import load_model_file
+
+    model = load_model_file(args.file)
+    space = model.state_space
+    elements = model.graph.elements
+    print(f"{model.name}: {model.description}" if model.description else model.name)
+    print("causality (the causal stroke sits at the end of the bond whose element receives the effort):")
+    for bond, setter in zip(model.graph.bonds, space.causality.effort_setter):
+        print(f"  {bond.tail} -> {bond.head}: stroke at {bond.other(setter)} ({setter} sets the effort)")
+    for name, signal in space.causality.inputs.items():
+        kind = elements[name].kind
+        note = " (integral)" if kind.is_storage else ""
+        print(f"  {name} ({kind.value}): its input is its {signal}{note}")
+    states = ", ".join(f"{name} ({'p' if elements[name].kind is Kind.I else 'q'})" for name in model.state_names)
+    print(f"states: {states}")
+    print("parameters:")
+    print("\n".join(_parameter_lines(model)))
+    constant = "".join(f"; {name} = {value:g} {model.units.get(name, '')}".rstrip() for name, value in model.source_values.items())
+    print(
+        f"load: {model.load_source}, nominal {model.nominal_load:g} {model.units.get(model.load_source, '')}".rstrip()
+        + f", random loads up to {model.excitation_bandwidth:g} Hz{constant}"
+    )
+    return 0
+
+
+def _parameter_lines(model: SystemModel) -> list[str]:
+    """One line per parameter: its nominal value and unit, and its safe limits (degradable) or none."""
+    lines = []
+    for name in model.parameter_names:
+        unit = model.units.get(name, "")
+        limits = model.safe_limits.get(name)
+        where = f"limits [{limits[0]:g}, {limits[1]:g}]" if limits else "no limits (not degradable)"
+        lines.append(f"  {name} = {model.nominal[name]:g} {unit}".rstrip() + f", {where}")
+    return lines
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -78,6 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_simulate(commands)
     _add_phm(commands)
     _add_reproduce(commands)
+    _add_models(commands)
     for entry in entry_points(group=COMMAND_GROUP):
         entry.load()(commands)
     return parser
@@ -95,6 +144,7 @@ def _add_simulate(commands: Subcommands) -> None:
         ),
     )
     simulate.add_argument("scenario", help="scenario file (.json, .yaml or .yml)")
+    _add_system(simulate)
     simulate.add_argument("--out", required=True, metavar="DIR", help="directory for energy.json and energy.png (created)")
     simulate.add_argument(
         "--window", type=positive_float, default=1.0, metavar="SECONDS",
@@ -116,6 +166,7 @@ def _add_phm(commands: Subcommands) -> None:
         ),
     )
     phm.add_argument("scenario", help="scenario file (.json, .yaml or .yml)")
+    _add_system(phm)
     phm.add_argument("--out", required=True, metavar="DIR", help="directory for results.json, report.md and figures (created)")
     phm.add_argument(
         "--classifier", metavar="PATH", default=None,
@@ -140,6 +191,32 @@ def _add_reproduce(commands: Subcommands) -> None:
     reproduce.add_argument("--classifier", metavar="PATH", default=None, help="load this isolation network instead of training one")
     reproduce.add_argument("--seed", type=int, default=0, help="seed of the database, training and sensor noise (default 0)")
     reproduce.set_defaults(run=_reproduce)
+
+
+def _add_system(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--system", metavar="MODEL", default=None,
+        help="the system to run instead of the scenario's: a built-in name (ea-gym models) or a model file (.yaml, .yml, .json)",
+    )
+
+
+def _add_models(commands: Subcommands) -> None:
+    models = commands.add_parser(
+        "models", help="list the built-in systems with their parameters and safe limits",
+        description="List the built-in systems: name, description, every parameter's nominal value, unit and safe limits.",
+    )
+    models.set_defaults(run=_models)
+    model = commands.add_parser(
+        "model",
+        help="check a model file and print its causality, states, parameters and limits",
+        description=(
+            "Check a model file (YAML or JSON: elements, bonds, load; see the README's Model files) and print "
+            "each bond's causal stroke, each element's input, the states, the parameters with their limits and "
+            "the load. A bad file: one line naming the element, bond or field and what was expected, exit code 2."
+        ),
+    )
+    model.add_argument("file", help="model file (.yaml, .yml or .json)")
+    model.set_defaults(run=_model)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

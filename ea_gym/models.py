@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -38,6 +38,7 @@ class SystemModel:
         excitation_bandwidth: bandwidth (Hz) of the random loads that excite the system's dynamics
             (above its resonances) when fault databases and environments draw loads.
         description: one line for people.
+        source_values: the constant value of every source but the load source (its unit, e.g. N, V).
     """
 
     name: str
@@ -49,16 +50,24 @@ class SystemModel:
     nominal_load: float
     excitation_bandwidth: float
     description: str = ""
+    source_values: Mapping[str, float] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         names = self.state_space.parameter_names
-        if self.load_source not in self.state_space.input_names:
+        sources = self.state_space.input_names
+        if self.load_source not in sources:
             raise ParameterError(
-                f"model {self.name!r}: load_source {self.load_source!r} is not a source; "
-                f"sources are {list(self.state_space.input_names)}"
+                f"model {self.name!r}: load_source {self.load_source!r} is not a source; sources are {list(sources)}"
             )
-        if len(self.state_space.input_names) != 1:
-            raise ParameterError(f"model {self.name!r}: exactly one source is supported, got {list(self.state_space.input_names)}")
+        constant = sorted(set(sources) - {self.load_source})
+        if sorted(self.source_values) != constant:
+            raise ParameterError(
+                f"model {self.name!r}: the sources other than the load source {constant} need constant values, "
+                f"got values for {sorted(self.source_values)}"
+            )
+        for source, value in self.source_values.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+                raise ParameterError(f"model {self.name!r}: source {source!r} = {value!r}; expected a finite constant")
         missing = sorted(set(names) - set(self.nominal))
         if missing:
             raise ParameterError(f"model {self.name!r}: no nominal value for {missing}")
@@ -83,6 +92,19 @@ class SystemModel:
     def rco_elements(self) -> tuple[str, ...]:
         """The R, C and I elements: the components whose EA enters the EAI sum (eq 5)."""
         return tuple(self.graph.names([Kind.R, Kind.C, Kind.I]))
+
+    def source_inputs(self, load: np.ndarray, load_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Every source's value and time derivative, (..., n_inputs) in ``state_space.input_names`` order,
+        from the load source's (...): the other sources hold their constant ``source_values``."""
+        load, load_rate = np.asarray(load, dtype=float), np.asarray(load_rate, dtype=float)
+        if not self.source_values:
+            return load[..., None], load_rate[..., None]
+        values = np.array([self.source_values.get(name, 0.0) for name in self.state_space.input_names])
+        at = self.state_space.input_names.index(self.load_source)
+        u = np.broadcast_to(values, load.shape + values.shape).copy()
+        du = np.zeros(load_rate.shape + values.shape)
+        u[..., at], du[..., at] = load, load_rate
+        return u, du
 
     def parameter_vector(self, values: Mapping[str, float] | None = None) -> np.ndarray:
         """Nominal values, with ``values`` overriding some, as an array in ``parameter_names`` order."""

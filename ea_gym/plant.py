@@ -1,4 +1,4 @@
-"""The plant: a built-in model simulated under a scenario, with every element's effort, flow and power."""
+"""The plant: a system model simulated under a scenario, with every element's effort, flow and power."""
 
 from __future__ import annotations
 
@@ -52,7 +52,7 @@ def run_model(
     """Simulate ``model`` at the evenly spaced sample times ``t`` (s).
 
     Args:
-        load: drives the model's load source (its unit, e.g. N).
+        load: drives the model's load source (its unit, e.g. N); the other sources hold their constant values.
         parameters: maps times (T,) to component values (T, P); default: the nominal values.
         initial_state: energy variables at t[0]; default at rest.
     """
@@ -67,8 +67,7 @@ def run_model(
     theta = np.asarray(parameters(t), dtype=float)
     theta_mid = np.asarray(parameters(t[:-1] + 0.5 * h), dtype=float)
     x0 = np.zeros(len(model.state_names)) if initial_state is None else np.asarray(initial_state, dtype=float)
-    u = load.value(t)[:, None]
-    du = load.derivative(t)[:, None]
+    u, du = model.source_inputs(load.value(t), load.derivative(t))
     states, bonds = simulate_linear(model.state_space, h, u, du, theta_mid, theta, x0)
     effort, flow = model.state_space.element_signals(bonds)
     power = {name: effort[name] * flow[name] for name in effort}

@@ -14,7 +14,8 @@ A scenario is a JSON file (or YAML when the path ends in .yaml/.yml), e.g. the p
 The load is one of ``{"kind": "constant", "value"}``, ``{"kind": "sines", "offset", "sines":
 [{"amplitude", "frequency", "phase"}]}`` or ``{"kind": "random", "mean", "std", "bandwidth",
 "seed"}``; load values are in the source's unit (N, V, ...), frequencies in Hz, phases in rad.
-Parameters and limits are in SI (see ``SystemModel.units``), times in s, the sample rate in Hz,
+``"system"`` is a built-in system's name or a model file's path (relative to the scenario file; see
+:mod:`ea_gym.model_files`). Parameters and limits are in SI (see ``SystemModel.units``), times in s, the sample rate in Hz,
 initial states are energy variables (p in kg m/s or V s, q in m or C), and the sensor noise is a
 standard deviation as a fraction of each measured signal's RMS.
 
@@ -24,7 +25,6 @@ each, the field path and what was expected.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from collections.abc import Mapping, Sequence
@@ -33,12 +33,13 @@ from pathlib import Path
 from typing import Annotated, Any, Literal
 
 import numpy as np
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from ea_gym.degradation import PiecewiseLinearProfile, ProfileError
+from ea_gym.documents import DocumentError, read_document
 from ea_gym.loads import ConstantLoad, Load, RandomLoad, Sine, SinesLoad
-from ea_gym.models import ParameterError, SystemModel, get_model
+from ea_gym.model_files import load_system
+from ea_gym.models import ParameterError, SystemModel
 
 # Strict: no silent conversion of "10" or true to a number.
 Real = Annotated[float, Strict()]
@@ -148,7 +149,7 @@ class Scenario:
     """A validated scenario.
 
     Attributes:
-        system: the model's registry name.
+        system: the system as named: a built-in's name or a model file's path.
         model: the model with the scenario's parameter and limit overrides applied.
         load_spec: the load's validated spec; :meth:`make_load` builds the load.
         duration: simulated time (s).
@@ -227,28 +228,21 @@ def _pydantic_problems(error: ValidationError) -> list[str]:
     return problems
 
 
-def _is_yaml(path: Path) -> bool:
-    return path.suffix.lower() in (".yaml", ".yml")
+def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: str | SystemModel | None = None) -> Scenario:
+    """Read (from a JSON/YAML file, or a mapping) and validate a scenario; raises ScenarioError.
 
-
-def _read(path: Path) -> Any:
-    text = path.read_text(encoding="utf-8")
-    return yaml.safe_load(text) if _is_yaml(path) else json.loads(text)
-
-
-def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any]) -> Scenario:
-    """Read (from a JSON/YAML file, or a mapping) and validate a scenario; raises ScenarioError."""
+    The scenario's ``"system"`` is a built-in name or a model file's path, relative to the scenario
+    file (to the working directory for a mapping); ``system``, when given, replaces it (a name, a
+    path relative to the working directory, or a model).
+    """
     if isinstance(source, Mapping):
         name, data = "dict", dict(source)
     else:
         name = os.fspath(source)
         try:
-            data = _read(Path(name))
-        except OSError as exc:
-            raise ScenarioError.from_problems(name, [f"cannot read the file: {exc.strerror or exc}"]) from None
-        except (json.JSONDecodeError, yaml.YAMLError, UnicodeDecodeError) as exc:
-            syntax = "YAML" if _is_yaml(Path(name)) else "JSON"
-            raise ScenarioError.from_problems(name, [f"the file is not valid {syntax}: {exc}"]) from None
+            data = read_document(name)
+        except DocumentError as exc:
+            raise ScenarioError.from_problems(name, [str(exc)]) from None
         if not isinstance(data, dict):
             raise ScenarioError.from_problems(name, [f"the top level must be an object, got {type(data).__name__}"])
     try:
@@ -256,7 +250,10 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any]) -> Scenari
     except ValidationError as exc:
         raise ScenarioError.from_problems(name, _pydantic_problems(exc)) from None
     try:
-        model = get_model(spec.system)
+        if system is not None:
+            model = load_system(system)
+        else:
+            model = load_system(spec.system, base=None if isinstance(source, Mapping) else Path(name).parent)
     except ParameterError as exc:
         raise ScenarioError.from_problems(name, [f"system: {exc}"]) from None
 
@@ -289,7 +286,7 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any]) -> Scenari
         raise ScenarioError.from_problems(name, problems)
 
     return Scenario(
-        system=spec.system,
+        system=spec.system if system is None else (system if isinstance(system, str) else system.name),
         model=model,
         load_spec=spec.load,
         duration=spec.duration,

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from typing import Any, SupportsInt, cast
 
 import gymnasium as gym
@@ -12,7 +13,8 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.env.config import EnvConfig, env_config
 from ea_gym.env.core import MaintenanceCore
 from ea_gym.env.observations import Observation
-from ea_gym.models import MODELS, SystemModel, get_model
+from ea_gym.model_files import load_system
+from ea_gym.models import MODELS, ParameterError, SystemModel
 
 
 class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
@@ -89,7 +91,8 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
       `horizon=500`, `costs=CostModel()`, `wear=None`, `corrective_rate=0.02`,
       `continue_after_failure=False`, `rul_max=1000.0`, `sample_rate=100.0`, `load_std=(0.2, 0.4)`,
       `phm=None` (the chain's own settings, a `PHMConfig`).
-    - `system`: a built-in model name or a `SystemModel` (bond graph with nominal values and safe limits).
+    - `system`: a built-in model name, a model file's path (.yaml, .yml, .json; see `ea_gym.model_files`) or a
+      `SystemModel` (bond graph with nominal values and safe limits).
     - `step_seconds`: degradation time per step; `window_seconds`: measured operation per step (default
       equal: continuous operation; a larger step is slow wear watched through periodic snapshots).
     - `noise`: sensor noise std as a fraction of each signal's RMS.
@@ -106,7 +109,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
 
     def __init__(
         self,
-        system: str | SystemModel = "spring_mass_damper",
+        system: str | os.PathLike[str] | SystemModel = "spring_mass_damper",
         config: EnvConfig | None = None,
         classifier: FaultClassifier | str | None = None,
         render_mode: str | None = None,
@@ -165,20 +168,21 @@ class SpringMassDamperEnv(BondGraphMaintenanceEnv):
 
 def build_core(
     n_systems: int,
-    system: str | SystemModel = "spring_mass_damper",
+    system: str | os.PathLike[str] | SystemModel = "spring_mass_damper",
     config: EnvConfig | None = None,
     classifier: FaultClassifier | str | None = None,
     **overrides: Any,
 ) -> MaintenanceCore:
     """The step core of N environments from the environments' arguments: the system (a built-in
-    model's name or a model), ``config`` with keyword ``overrides`` of its fields, and the classifier
+    model's name, a model file's path or a model), ``config`` with keyword ``overrides`` of its fields, and the classifier
     (or a path to one)."""
-    if isinstance(system, str):
-        if system not in MODELS:
-            raise ValueError(f"system must be one of {sorted(MODELS)} or a SystemModel, got {system!r}")
-        system = get_model(system)
+    if isinstance(system, (str, os.PathLike)):
+        try:
+            system = load_system(system)
+        except ParameterError as exc:
+            raise ValueError(f"system must be one of {sorted(MODELS)}, a model file or a SystemModel: {exc}") from None
     elif not isinstance(system, SystemModel):
-        raise TypeError(f"system must be a model name or a SystemModel, got {type(system).__name__}")
+        raise TypeError(f"system must be a model name, a model file's path or a SystemModel, got {type(system).__name__}")
     settings = env_config(config, **overrides)
     if isinstance(classifier, str):
         classifier = FaultClassifier.load(classifier)

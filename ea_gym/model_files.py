@@ -1,0 +1,317 @@
+"""Model files: a system's bond graph, component values, safe limits and load written in YAML or JSON.
+
+A model file (the README's "Model files" section has a whole one)::
+
+    name: two_mass_chain                  # required; a letter or _, then letters, digits, _
+    description: two masses in a chain    # optional
+    elements:                             # required: name -> element
+      F:  {kind: Se, unit: N}             # sources Se, Sf; a source other than the load source needs `value`
+      v1: {kind: "1"}                     # junctions "0", "1"
+      m1: {kind: I, value: 10.0, unit: kg, limits: [9.0, 11.0]}
+      k1: {kind: C, form: stiffness, value: 100.0, unit: N/m, limits: [85.0, 105.0]}
+      b1: {kind: R, value: 0.5, unit: N s/m}
+    bonds: [[F, v1], [v1, m1], [v1, k1], [v1, b1]]   # [tail, head]: positive power from tail to head
+    load: {source: F, nominal: 10.0, bandwidth: 2.0}
+
+R, C, I, TF and GY carry ``value`` (> 0, SI) and an optional ``unit``; a C element's ``form`` is
+``stiffness`` (effort = value x q) or ``compliance`` (effort = q / value, the default); TF and GY follow
+:class:`ea_gym.bondgraph.Element`'s laws, their incoming bond first. ``limits: [lower, upper]`` (around
+the value) make a parameter degradable and maintainable. ``load`` names the source a scenario's load
+drives, its nominal value (the source's unit) and the band (Hz) of the random loads that excite the
+dynamics.
+
+:func:`load_model_file` checks all of it and builds a :class:`~ea_gym.models.SystemModel`; a
+:class:`ModelFileError` names, on one line, every element, bond or field that is wrong and what was
+expected. :func:`load_system` takes a built-in name or a model file's path wherever a system is named.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from ea_gym.bondgraph.elements import CForm, Kind
+from ea_gym.bondgraph.graph import BondGraph, BondGraphError
+from ea_gym.documents import DocumentError, read_document
+from ea_gym.models import MODELS, ParameterError, SystemModel, get_model
+
+__all__ = ["MODEL_FILE_SUFFIXES", "ModelFileError", "is_model_file", "load_model_file", "load_system", "model_from_data"]
+
+MODEL_FILE_SUFFIXES = (".yaml", ".yml", ".json")
+NAME_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+_FIELDS = ("name", "description", "elements", "bonds", "load")
+_C_FORMS = {"stiffness": CForm.STIFFNESS, "compliance": CForm.CAPACITANCE}
+_KINDS = tuple(kind.value for kind in Kind)
+
+
+class ModelFileError(ParameterError):
+    """An invalid model file; the one-line message names the file and every culprit with what was expected."""
+
+
+def is_model_file(system: str | os.PathLike[str]) -> bool:
+    """Whether ``system`` names a model file (by its suffix) rather than a built-in system."""
+    return Path(system).suffix.lower() in MODEL_FILE_SUFFIXES
+
+
+def load_system(system: str | os.PathLike[str] | SystemModel, base: str | os.PathLike[str] | None = None) -> SystemModel:
+    """The system a user names: a SystemModel as is, a built-in's name, or a model file's path.
+
+    Args:
+        base: the directory a relative model-file path is relative to (default: the working directory).
+
+    Raises:
+        ParameterError: an unknown name (the message lists the built-ins), or a ModelFileError.
+    """
+    if isinstance(system, SystemModel):
+        return system
+    if not isinstance(system, (str, os.PathLike)):
+        raise ParameterError(f"system: expected a built-in name or a model file's path, got {type(system).__name__}")
+    if isinstance(system, str) and system in MODELS:
+        return get_model(system)
+    if not is_model_file(system):
+        raise ParameterError(
+            f"unknown system {os.fspath(system)!r}; valid systems are {sorted(MODELS)} "
+            f"or a model file ({', '.join(MODEL_FILE_SUFFIXES)})"
+        )
+    path = Path(system)
+    return load_model_file(path if base is None or path.is_absolute() else Path(base) / path)
+
+
+def load_model_file(path: str | os.PathLike[str]) -> SystemModel:
+    """Read, check and build the model file at ``path`` (YAML for .yaml/.yml, else JSON); raises ModelFileError."""
+    source = os.fspath(path)
+    try:
+        data = read_document(source)
+    except DocumentError as exc:
+        raise ModelFileError(f"model file {source}: {exc}") from None
+    return model_from_data(data, source)
+
+
+def model_from_data(data: Any, source: str = "dict") -> SystemModel:
+    """Check the plain data of a model file and build its SystemModel; raises ModelFileError naming ``source``."""
+    problems = _Problems()
+    model = _build(data, problems)
+    if problems or model is None:
+        raise ModelFileError(f"model file {source}: {'; '.join(problems)}")
+    return model
+
+
+class _Problems(list[str]):
+    """The problems found so far, one ``<where>: <what was expected>`` each."""
+
+    def add(self, where: str, expected: str) -> None:
+        self.append(f"{where}: {expected}")
+
+
+def _number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _describe(value: Any) -> str:
+    return repr(value) if isinstance(value, (str, int, float, bool)) or value is None else f"a {type(value).__name__}"
+
+
+def _name(value: Any, where: str, problems: _Problems) -> bool:
+    if isinstance(value, str) and NAME_PATTERN.fullmatch(value):
+        return True
+    problems.add(where, f"expected a name of letters, digits and _ that starts with a letter or _ (at most 64), got {_describe(value)}")
+    return False
+
+
+def _build(data: Any, problems: _Problems) -> SystemModel | None:
+    if not isinstance(data, dict):
+        problems.add("top level", f"expected a mapping with the fields {', '.join(_FIELDS)}, got {_describe(data)}")
+        return None
+    for key in data:
+        if key not in _FIELDS:
+            problems.add(str(key), f"unknown field; expected {', '.join(_FIELDS)}")
+    for key in ("name", "elements", "bonds", "load"):
+        if key not in data:
+            problems.add(key, "missing (required)")
+    name = data.get("name")
+    if name is not None and _name(name, "name", problems) and name in MODELS:
+        problems.add("name", f"{name!r} is a built-in system's name; choose another (built-ins: {sorted(MODELS)})")
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        problems.add("description", f"expected text, got {_describe(description)}")
+    elements = _elements(data.get("elements"), problems) if "elements" in data else {}
+    declared = list(data["elements"]) if isinstance(data.get("elements"), dict) else []
+    bonds = _bonds(data.get("bonds"), declared, problems) if "bonds" in data else []
+    load = _load(data.get("load"), elements, problems) if "load" in data else None
+    if "elements" in data and elements:
+        _ports(elements, bonds, problems)
+        for element, spec in elements.items():
+            needs_value = spec["kind"].is_source and (load is None or element != load[0])
+            if needs_value and "value" not in spec:
+                problems.add(f"elements.{element}.value", "missing: a source other than the load source needs a constant value")
+            elif load is not None and element == load[0] and "value" in spec:
+                problems.add(f"elements.{element}.value", "the load source takes its value from the scenario's load; give load.nominal instead")
+    if problems or load is None:
+        return None
+    graph = BondGraph()
+    for element, spec in elements.items():
+        graph.add(element, spec["kind"], c_form=spec.get("form", CForm.CAPACITANCE))
+    for tail, head in bonds:
+        graph.connect(tail, head)
+    parametrised = {e: s for e, s in elements.items() if s["kind"].has_parameter}
+    units = {e: s["unit"] for e, s in elements.items() if "unit" in s}
+    try:
+        return SystemModel(
+            name=name,
+            graph=graph,
+            nominal={e: float(s["value"]) for e, s in parametrised.items()},
+            safe_limits={e: s["limits"] for e, s in parametrised.items() if "limits" in s},
+            units=units,
+            load_source=load[0],
+            nominal_load=load[1],
+            excitation_bandwidth=load[2],
+            description=description,
+            source_values={e: float(s["value"]) for e, s in elements.items() if s["kind"].is_source and e != load[0]},
+        )
+    except BondGraphError as exc:
+        problems.add("bonds", str(exc))
+    except ParameterError as exc:
+        problems.append(str(exc))
+    return None
+
+
+def _elements(raw: Any, problems: _Problems) -> dict[str, dict[str, Any]]:
+    """name -> checked fields (kind as a Kind, form as a CForm, limits as a tuple) of the valid elements."""
+    if not isinstance(raw, dict) or not raw:
+        problems.add("elements", f"expected a non-empty mapping of element name -> element, got {_describe(raw)}")
+        return {}
+    elements = {}
+    for name, spec in raw.items():
+        where = f"elements.{name}"
+        if not _name(name, where, problems):
+            continue
+        if not isinstance(spec, dict):
+            problems.add(where, f"expected a mapping with kind (one of {', '.join(_KINDS)}), got {_describe(spec)}")
+            continue
+        checked = _element(where, spec, problems)
+        if checked is not None:
+            elements[name] = checked
+    return elements
+
+
+def _element(where: str, spec: dict[str, Any], problems: _Problems) -> dict[str, Any] | None:
+    kind_text = spec.get("kind")
+    if isinstance(kind_text, int) and not isinstance(kind_text, bool) and kind_text in (0, 1):
+        kind_text = str(kind_text)  # YAML reads an unquoted 0 or 1 as a number
+    if kind_text not in _KINDS:
+        problems.add(f"{where}.kind", f"expected one of {', '.join(_KINDS)}, got {_describe(kind_text) if 'kind' in spec else 'nothing'}")
+        return None
+    kind = Kind(kind_text)
+    allowed = {"kind"}
+    if kind.is_source:
+        allowed |= {"value", "unit"}
+    elif kind.has_parameter:
+        allowed |= {"value", "unit", "limits"} | ({"form"} if kind is Kind.C else set())
+    for key in spec:
+        if key not in allowed:
+            problems.add(f"{where}.{key}", f"not a field of a {kind.value} element; expected {', '.join(sorted(allowed))}")
+    checked: dict[str, Any] = {"kind": kind}
+    if "unit" in spec:
+        if isinstance(spec["unit"], str):
+            checked["unit"] = spec["unit"]
+        else:
+            problems.add(f"{where}.unit", f"expected text such as N/m, got {_describe(spec['unit'])}")
+    if kind.is_source and "value" in spec:
+        if _number(spec["value"]):
+            checked["value"] = spec["value"]
+        else:
+            problems.add(f"{where}.value", f"expected a finite number (the source's constant value), got {_describe(spec['value'])}")
+    if not kind.has_parameter:
+        return checked
+    value = spec.get("value")
+    if "value" not in spec:
+        problems.add(f"{where}.value", f"missing: a {kind.value} element needs a value > 0 (SI)")
+        return None
+    if not (_number(value) and value > 0):
+        problems.add(f"{where}.value", f"expected a finite number > 0 (SI), got {_describe(value)}")
+        return None
+    checked["value"] = value
+    if kind is Kind.C:
+        form = spec.get("form", "compliance")
+        if form in _C_FORMS:
+            checked["form"] = _C_FORMS[form]
+        else:
+            problems.add(f"{where}.form", f"expected stiffness or compliance, got {_describe(form)}")
+    if "limits" in spec:
+        limits = spec["limits"]
+        if not (isinstance(limits, list) and len(limits) == 2 and all(_number(v) and v > 0 for v in limits)):
+            problems.add(f"{where}.limits", f"expected [lower, upper], two finite numbers > 0, got {_describe(limits) if not isinstance(limits, list) else limits}")
+        elif not limits[0] <= value <= limits[1] or not limits[0] < limits[1]:
+            problems.add(f"{where}.limits", f"{limits} must satisfy lower < upper and contain the value {value}")
+        else:
+            checked["limits"] = (float(limits[0]), float(limits[1]))
+    return checked
+
+
+def _bonds(raw: Any, elements: list[str], problems: _Problems) -> list[tuple[str, str]]:
+    if not isinstance(raw, list) or not raw:
+        problems.add("bonds", f"expected a non-empty list of [tail, head] pairs, got {_describe(raw)}")
+        return []
+    bonds = []
+    for i, bond in enumerate(raw):
+        where = f"bonds[{i}]"
+        if not (isinstance(bond, list) and len(bond) == 2 and all(isinstance(end, str) for end in bond)):
+            problems.add(where, f"expected [tail, head], two element names, got {bond if isinstance(bond, list) else _describe(bond)}")
+            continue
+        tail, head = bond
+        unknown = [end for end in bond if end not in elements]
+        if unknown:
+            problems.add(where, f"[{tail}, {head}]: unknown element {unknown[0]!r}; expected one of {', '.join(map(str, elements))}")
+        elif tail == head:
+            problems.add(where, f"[{tail}, {head}] joins an element to itself; expected two different elements")
+        else:
+            bonds.append((tail, head))
+    return bonds
+
+
+def _ports(elements: Mapping[str, dict[str, Any]], bonds: list[tuple[str, str]], problems: _Problems) -> None:
+    """Every element's number of bonds (and a TF or GY's directions)."""
+    for name, spec in elements.items():
+        kind = spec["kind"]
+        ins = sum(head == name for _, head in bonds)
+        outs = sum(tail == name for tail, _ in bonds)
+        where = f"elements.{name}"
+        if kind.is_junction and ins + outs < 2:
+            problems.add(where, f"a {kind.value}-junction needs at least 2 bonds, has {ins + outs}")
+        elif kind.is_two_port and (ins, outs) != (1, 1):
+            problems.add(where, f"a {kind.value} element needs exactly one bond in ([x, {name}]) and one out ([{name}, y]), has {ins} in and {outs} out")
+        elif not (kind.is_junction or kind.is_two_port) and ins + outs != 1:
+            problems.add(where, f"a {kind.value} element needs exactly 1 bond, has {ins + outs}")
+
+
+def _load(raw: Any, elements: Mapping[str, dict[str, Any]], problems: _Problems) -> tuple[str, float, float] | None:
+    fields = ("source", "nominal", "bandwidth")
+    if not isinstance(raw, dict):
+        problems.add("load", f"expected a mapping with {', '.join(fields)}, got {_describe(raw)}")
+        return None
+    ok = True
+    for key in raw:
+        if key not in fields:
+            problems.add(f"load.{key}", f"unknown field; expected {', '.join(fields)}")
+            ok = False
+    for key in fields:
+        if key not in raw:
+            problems.add(f"load.{key}", "missing (required)")
+            ok = False
+    source = raw.get("source")
+    sources = [n for n, s in elements.items() if s["kind"].is_source]
+    if "source" in raw and source not in sources:
+        problems.add("load.source", f"expected one of the sources {sources}, got {_describe(source)}")
+        ok = False
+    nominal, bandwidth = raw.get("nominal"), raw.get("bandwidth")
+    if "nominal" in raw and not (_number(nominal) and nominal > 0):
+        problems.add("load.nominal", f"expected a finite number > 0 (the load's nominal value, the source's unit), got {_describe(nominal)}")
+        ok = False
+    if "bandwidth" in raw and not (_number(bandwidth) and bandwidth > 0):
+        problems.add("load.bandwidth", f"expected a finite number of Hz > 0, got {_describe(bandwidth)}")
+        ok = False
+    return (source, float(nominal), float(bandwidth)) if ok else None
