@@ -31,8 +31,9 @@ import math
 import os
 import re
 from collections.abc import Mapping
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 from ea_gym.bondgraph.elements import CForm, Kind
 from ea_gym.bondgraph.graph import BondGraph, BondGraphError
@@ -107,7 +108,7 @@ class _Problems(list[str]):
         self.append(f"{where}: {expected}")
 
 
-def _number(value: Any) -> bool:
+def _number(value: Any) -> TypeGuard[float]:
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
@@ -126,6 +127,44 @@ def _build(data: Any, problems: _Problems) -> SystemModel | None:
     if not isinstance(data, dict):
         problems.add("top level", f"expected a mapping with the fields {', '.join(_FIELDS)}, got {_describe(data)}")
         return None
+    name, description = _header(data, problems)
+    elements = _elements(data.get("elements"), problems) if "elements" in data else {}
+    declared = list(data["elements"]) if isinstance(data.get("elements"), dict) else []
+    bonds = _bonds(data.get("bonds"), declared, problems) if "bonds" in data else []
+    load = _load(data.get("load"), elements, problems) if "load" in data else None
+    if elements:
+        _ports(elements, bonds, problems)
+        _source_values(elements, load, problems)
+    if problems or load is None:
+        return None
+    graph = BondGraph()
+    for element, spec in elements.items():
+        graph.add(element, spec.kind, c_form=spec.form)
+    for tail, head in bonds:
+        graph.connect(tail, head)
+    values = {e: spec.value for e, spec in elements.items() if spec.value is not None}
+    try:
+        return SystemModel(
+            name=name,
+            graph=graph,
+            nominal={e: v for e, v in values.items() if elements[e].kind.has_parameter},
+            safe_limits={e: spec.limits for e, spec in elements.items() if spec.limits is not None},
+            units={e: spec.unit for e, spec in elements.items() if spec.unit is not None},
+            load_source=load[0],
+            nominal_load=load[1],
+            excitation_bandwidth=load[2],
+            description=description,
+            source_values={e: v for e, v in values.items() if elements[e].kind.is_source},
+        )
+    except BondGraphError as exc:  # the structure's checks and the causality (derivative causality named)
+        problems.add("bonds", str(exc))
+    except ParameterError as exc:
+        problems.append(str(exc))
+    return None
+
+
+def _header(data: dict[str, Any], problems: _Problems) -> tuple[str, str]:
+    """The unknown and missing top-level fields; the name and description."""
     for key in data:
         if key not in _FIELDS:
             problems.add(str(key), f"unknown field; expected {', '.join(_FIELDS)}")
@@ -138,49 +177,22 @@ def _build(data: Any, problems: _Problems) -> SystemModel | None:
     description = data.get("description", "")
     if not isinstance(description, str):
         problems.add("description", f"expected text, got {_describe(description)}")
-    elements = _elements(data.get("elements"), problems) if "elements" in data else {}
-    declared = list(data["elements"]) if isinstance(data.get("elements"), dict) else []
-    bonds = _bonds(data.get("bonds"), declared, problems) if "bonds" in data else []
-    load = _load(data.get("load"), elements, problems) if "load" in data else None
-    if "elements" in data and elements:
-        _ports(elements, bonds, problems)
-        for element, spec in elements.items():
-            needs_value = spec["kind"].is_source and (load is None or element != load[0])
-            if needs_value and "value" not in spec:
-                problems.add(f"elements.{element}.value", "missing: a source other than the load source needs a constant value")
-            elif load is not None and element == load[0] and "value" in spec:
-                problems.add(f"elements.{element}.value", "the load source takes its value from the scenario's load; give load.nominal instead")
-    if problems or load is None:
-        return None
-    graph = BondGraph()
-    for element, spec in elements.items():
-        graph.add(element, spec["kind"], c_form=spec.get("form", CForm.CAPACITANCE))
-    for tail, head in bonds:
-        graph.connect(tail, head)
-    parametrised = {e: s for e, s in elements.items() if s["kind"].has_parameter}
-    units = {e: s["unit"] for e, s in elements.items() if "unit" in s}
-    try:
-        return SystemModel(
-            name=name,
-            graph=graph,
-            nominal={e: float(s["value"]) for e, s in parametrised.items()},
-            safe_limits={e: s["limits"] for e, s in parametrised.items() if "limits" in s},
-            units=units,
-            load_source=load[0],
-            nominal_load=load[1],
-            excitation_bandwidth=load[2],
-            description=description,
-            source_values={e: float(s["value"]) for e, s in elements.items() if s["kind"].is_source and e != load[0]},
-        )
-    except BondGraphError as exc:
-        problems.add("bonds", str(exc))
-    except ParameterError as exc:
-        problems.append(str(exc))
-    return None
+    return str(name), str(description)
 
 
-def _elements(raw: Any, problems: _Problems) -> dict[str, dict[str, Any]]:
-    """name -> checked fields (kind as a Kind, form as a CForm, limits as a tuple) of the valid elements."""
+@dataclass
+class _Element:
+    """An element's checked fields (value in SI; limits only where given)."""
+
+    kind: Kind
+    value: float | None = None
+    unit: str | None = None
+    form: CForm = CForm.CAPACITANCE
+    limits: tuple[float, float] | None = None
+
+
+def _elements(raw: Any, problems: _Problems) -> dict[str, _Element]:
+    """name -> checked fields of the valid elements."""
     if not isinstance(raw, dict) or not raw:
         problems.add("elements", f"expected a non-empty mapping of element name -> element, got {_describe(raw)}")
         return {}
@@ -198,58 +210,73 @@ def _elements(raw: Any, problems: _Problems) -> dict[str, dict[str, Any]]:
     return elements
 
 
-def _element(where: str, spec: dict[str, Any], problems: _Problems) -> dict[str, Any] | None:
+def _element(where: str, spec: dict[str, Any], problems: _Problems) -> _Element | None:
     kind_text = spec.get("kind")
     if isinstance(kind_text, int) and not isinstance(kind_text, bool) and kind_text in (0, 1):
         kind_text = str(kind_text)  # YAML reads an unquoted 0 or 1 as a number
     if kind_text not in _KINDS:
-        problems.add(f"{where}.kind", f"expected one of {', '.join(_KINDS)}, got {_describe(kind_text) if 'kind' in spec else 'nothing'}")
+        got = _describe(kind_text) if "kind" in spec else "nothing"
+        problems.add(f"{where}.kind", f"expected one of {', '.join(_KINDS)}, got {got}")
         return None
     kind = Kind(kind_text)
-    allowed = {"kind"}
-    if kind.is_source:
-        allowed |= {"value", "unit"}
-    elif kind.has_parameter:
+    allowed = {"kind"} | ({"value", "unit"} if kind.is_source else set())
+    if kind.has_parameter:
         allowed |= {"value", "unit", "limits"} | ({"form"} if kind is Kind.C else set())
     for key in spec:
         if key not in allowed:
             problems.add(f"{where}.{key}", f"not a field of a {kind.value} element; expected {', '.join(sorted(allowed))}")
-    checked: dict[str, Any] = {"kind": kind}
+    checked = _Element(kind)
     if "unit" in spec:
         if isinstance(spec["unit"], str):
-            checked["unit"] = spec["unit"]
+            checked.unit = spec["unit"]
         else:
             problems.add(f"{where}.unit", f"expected text such as N/m, got {_describe(spec['unit'])}")
     if kind.is_source and "value" in spec:
         if _number(spec["value"]):
-            checked["value"] = spec["value"]
+            checked.value = float(spec["value"])
         else:
             problems.add(f"{where}.value", f"expected a finite number (the source's constant value), got {_describe(spec['value'])}")
-    if not kind.has_parameter:
-        return checked
+    return _parameter(where, spec, checked, problems) if kind.has_parameter else checked
+
+
+def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _Problems) -> _Element | None:
+    """An R, C, I, TF or GY element's value, C form and limits."""
     value = spec.get("value")
     if "value" not in spec:
-        problems.add(f"{where}.value", f"missing: a {kind.value} element needs a value > 0 (SI)")
+        problems.add(f"{where}.value", f"missing: a {checked.kind.value} element needs a value > 0 (SI)")
         return None
     if not (_number(value) and value > 0):
         problems.add(f"{where}.value", f"expected a finite number > 0 (SI), got {_describe(value)}")
         return None
-    checked["value"] = value
-    if kind is Kind.C:
+    checked.value = float(value)
+    if checked.kind is Kind.C:
         form = spec.get("form", "compliance")
         if form in _C_FORMS:
-            checked["form"] = _C_FORMS[form]
+            checked.form = _C_FORMS[form]
         else:
             problems.add(f"{where}.form", f"expected stiffness or compliance, got {_describe(form)}")
     if "limits" in spec:
         limits = spec["limits"]
         if not (isinstance(limits, list) and len(limits) == 2 and all(_number(v) and v > 0 for v in limits)):
-            problems.add(f"{where}.limits", f"expected [lower, upper], two finite numbers > 0, got {_describe(limits) if not isinstance(limits, list) else limits}")
+            got = limits if isinstance(limits, list) else _describe(limits)
+            problems.add(f"{where}.limits", f"expected [lower, upper], two finite numbers > 0, got {got}")
         elif not limits[0] <= value <= limits[1] or not limits[0] < limits[1]:
             problems.add(f"{where}.limits", f"{limits} must satisfy lower < upper and contain the value {value}")
         else:
-            checked["limits"] = (float(limits[0]), float(limits[1]))
+            checked.limits = (float(limits[0]), float(limits[1]))
     return checked
+
+
+def _source_values(elements: Mapping[str, _Element], load: tuple[str, float, float] | None, problems: _Problems) -> None:
+    """A constant value for every source but the load source, none for it."""
+    for name, spec in elements.items():
+        if not spec.kind.is_source:
+            continue
+        if load is not None and name == load[0]:
+            if spec.value is not None:
+                problems.add(f"elements.{name}.value", "the load source takes its value from the scenario's load; give load.nominal instead")
+        elif spec.value is None:
+            problems.add(f"elements.{name}.value", "missing: a source other than the load source needs a constant value")
 
 
 def _bonds(raw: Any, elements: list[str], problems: _Problems) -> list[tuple[str, str]]:
@@ -273,22 +300,23 @@ def _bonds(raw: Any, elements: list[str], problems: _Problems) -> list[tuple[str
     return bonds
 
 
-def _ports(elements: Mapping[str, dict[str, Any]], bonds: list[tuple[str, str]], problems: _Problems) -> None:
+def _ports(elements: Mapping[str, _Element], bonds: list[tuple[str, str]], problems: _Problems) -> None:
     """Every element's number of bonds (and a TF or GY's directions)."""
     for name, spec in elements.items():
-        kind = spec["kind"]
+        kind = spec.kind
         ins = sum(head == name for _, head in bonds)
         outs = sum(tail == name for tail, _ in bonds)
         where = f"elements.{name}"
         if kind.is_junction and ins + outs < 2:
             problems.add(where, f"a {kind.value}-junction needs at least 2 bonds, has {ins + outs}")
         elif kind.is_two_port and (ins, outs) != (1, 1):
-            problems.add(where, f"a {kind.value} element needs exactly one bond in ([x, {name}]) and one out ([{name}, y]), has {ins} in and {outs} out")
+            expected = f"exactly one bond in ([x, {name}]) and one out ([{name}, y])"
+            problems.add(where, f"a {kind.value} element needs {expected}, has {ins} in and {outs} out")
         elif not (kind.is_junction or kind.is_two_port) and ins + outs != 1:
             problems.add(where, f"a {kind.value} element needs exactly 1 bond, has {ins + outs}")
 
 
-def _load(raw: Any, elements: Mapping[str, dict[str, Any]], problems: _Problems) -> tuple[str, float, float] | None:
+def _load(raw: Any, elements: Mapping[str, _Element], problems: _Problems) -> tuple[str, float, float] | None:
     fields = ("source", "nominal", "bandwidth")
     if not isinstance(raw, dict):
         problems.add("load", f"expected a mapping with {', '.join(fields)}, got {_describe(raw)}")
@@ -303,7 +331,7 @@ def _load(raw: Any, elements: Mapping[str, dict[str, Any]], problems: _Problems)
             problems.add(f"load.{key}", "missing (required)")
             ok = False
     source = raw.get("source")
-    sources = [n for n, s in elements.items() if s["kind"].is_source]
+    sources = [n for n, s in elements.items() if s.kind.is_source]
     if "source" in raw and source not in sources:
         problems.add("load.source", f"expected one of the sources {sources}, got {_describe(source)}")
         ok = False
@@ -314,4 +342,4 @@ def _load(raw: Any, elements: Mapping[str, dict[str, Any]], problems: _Problems)
     if "bandwidth" in raw and not (_number(bandwidth) and bandwidth > 0):
         problems.add("load.bandwidth", f"expected a finite number of Hz > 0, got {_describe(bandwidth)}")
         ok = False
-    return (source, float(nominal), float(bandwidth)) if ok else None
+    return (str(source), float(nominal), float(bandwidth)) if ok and _number(nominal) and _number(bandwidth) else None
