@@ -1,4 +1,5 @@
-"""Running signals through a chain: a scenario's simulation, or signals recorded elsewhere."""
+"""Running signals through a chain: a scenario's simulation, or signals recorded elsewhere, whole or
+streamed (:class:`StreamingChain`)."""
 
 from __future__ import annotations
 
@@ -7,12 +8,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from numpy.typing import ArrayLike
+
 from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.monitor import Monitor, MonitorConfig
+from ea_gym.energy import window_samples
+from ea_gym.measurements import Measurements
 from ea_gym.models import SystemModel
 from ea_gym.phm.chain import HealthStatus, PHMChain
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import calibrate_thresholds
+from ea_gym.plant import Trajectory, run_model
 from ea_gym.scenario import Scenario
 from ea_gym.sensors import add_sensor_noise, measure
 
@@ -22,19 +29,29 @@ Progress = Callable[[Iterable[int]], Iterable[int]]
 
 @dataclass(frozen=True)
 class ChainRun:
-    """A scenario run through the chain: the statuses of every step and the ground truth.
+    """A run through the chain: the statuses of every step and, for a scenario, the ground truth.
 
     Attributes:
         statuses: the chain's record of every step.
         t: end of every step (s), (steps,).
-        true_parameters: the plant's parameters at the end of every step, (steps, P).
+        true_parameters: the plant's parameters at the end of every step, (steps, P); None for
+            recorded measurements, whose truth is unknown.
         residual_series: EA residual of every element per sub-window (J), (E, sub-windows of the run).
     """
 
     statuses: list[HealthStatus]
     t: np.ndarray
-    true_parameters: np.ndarray
+    true_parameters: np.ndarray | None
     residual_series: np.ndarray
+
+    @classmethod
+    def of(cls, statuses: list[HealthStatus], true_parameters: np.ndarray | None = None) -> ChainRun:
+        """The run of the statuses of one system (N = 1)."""
+        if not statuses:
+            raise ValueError("a run needs at least one status")
+        ends = np.array([s.t[0] for s in statuses])
+        residuals = np.concatenate([s.sub_residual[0] for s in statuses], -1)
+        return cls(statuses=statuses, t=ends, true_parameters=true_parameters, residual_series=residuals)
 
 
 def nominal_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
@@ -87,26 +104,178 @@ def run_signals(
     return statuses
 
 
+def _plant_signals(scenario: Scenario, monitor: Monitor, rng: np.random.Generator) -> tuple[Trajectory, np.ndarray]:
+    """The scenario's plant simulated, and its sensors' clean signals, (1, nx, T)."""
+    plant = run_model(scenario.model, scenario.times(), scenario.make_load(), scenario.parameters_at, scenario.initial_state_vector())
+    return plant, measure(monitor, plant.parameters[None], plant.states[None], 0.0, rng)
+
+
 def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, progress: Progress | None = None) -> ChainRun:
     """Simulate ``scenario``'s plant and the reference model and feed them step by step through ``chain`` (N = 1)."""
-    from ea_gym.plant import run_model
-
     model = scenario.model
     t = scenario.times()
     load = scenario.make_load()
-    plant = run_model(model, t, load, scenario.parameters_at, scenario.initial_state_vector())
+    plant, clean = _plant_signals(scenario, chain.monitor, rng)
     reference = run_model(model, t, load, None, scenario.initial_state_vector())
     nominal = model.parameter_vector()[None]
-    clean = measure(chain.monitor, plant.parameters[None], plant.states[None], 0.0, rng)
     expected = measure(chain.monitor, nominal, reference.states[None], 0.0, rng)
     statuses = run_signals(
         chain, clean, load.value(t)[None], load.derivative(t)[None], expected,
         noise=lambda chunk: add_sensor_noise(chunk, chain.config.noise, rng), progress=progress,
     )
-    ends = np.array([s.t[0] for s in statuses])
-    index = np.round(ends * scenario.sample_rate).astype(int)
-    residuals = np.concatenate([s.sub_residual[0] for s in statuses], -1)
-    return ChainRun(statuses=statuses, t=ends, true_parameters=plant.parameters[index], residual_series=residuals)
+    index = np.round(np.array([s.t[0] for s in statuses]) * scenario.sample_rate).astype(int)
+    return ChainRun.of(statuses, plant.parameters[index])
+
+
+def scenario_measurements(scenario: Scenario, rng: np.random.Generator) -> Measurements:
+    """What the sensors of ``scenario``'s plant record: its load and every storage element's signal with
+    the scenario's sensor noise (its std a fraction of each signal's RMS over each step of ``PHMConfig().step``)."""
+    h = 1.0 / scenario.sample_rate
+    monitor = Monitor(scenario.model, h, MonitorConfig(), 1)
+    plant, clean = _plant_signals(scenario, monitor, rng)
+    step = window_samples(PHMConfig().step, h)
+    noisy = np.concatenate([add_sensor_noise(clean[..., s : s + step], scenario.noise, rng) for s in range(0, clean.shape[-1], step)], -1)
+    return Measurements(t=plant.t, load=scenario.make_load().value(plant.t), signals=noisy[0].T)
+
+
+class StreamingChain:
+    """The chain on one machine's recorded signals, fed in chunks of any length as they arrive.
+
+    The reference model (nominal parameters) runs alongside, driven by the recorded load and started
+    from the first measured sample. The load's derivative is its central difference (one-sided at the
+    record's ends), so the load between samples is the cubic through them (Catmull-Rom). A step is
+    processed once the sample after its end has arrived (the derivative there needs it); ``finish``
+    processes the last one at the record's end. The statuses do not depend on how the record is chunked.
+
+    Args:
+        chain: for one system (N = 1); it is reset. Its sample rate is the record's.
+    """
+
+    def __init__(self, chain: PHMChain):
+        if chain.n != 1:
+            raise ValueError(f"a stream feeds one system; the chain has {chain.n}")
+        chain.reset()
+        self.chain = chain
+        self.statuses: list[HealthStatus] = []
+        self.start_time: float | None = None
+        nx = len(chain.model.state_names)
+        # the samples from the one before the next step's start on (that one: the derivative's)
+        self._load = np.empty(0)
+        self._signals = np.empty((nx, 0))
+        self._received = 0  # samples fed so far
+        self._first = 0  # record index of the buffer's first sample
+        self._reference_state: np.ndarray | None = None  # nominal model's energy variables at the next step's start
+        self._finished = False
+
+    @property
+    def received(self) -> int:
+        """Samples fed so far."""
+        return self._received
+
+    def feed(self, t: ArrayLike, load: ArrayLike, signals: ArrayLike) -> list[HealthStatus]:
+        """Append samples to the record and run every step they complete.
+
+        Args:
+            t: their times (s), (T,), continuing the record at the chain's sample period.
+            load: the load source's value (SI), (T,).
+            signals: every storage element's measured signal (I: flow, C: displacement q) in
+                ``model.state_names`` order, (T, nx).
+
+        Returns:
+            the status of every step completed, in order (none while a step is incomplete).
+        """
+        if self._finished:
+            raise ValueError("the stream is finished; start a new one")
+        t, load, signals = (np.asarray(x, dtype=float) for x in (t, load, signals))
+        nx = self._signals.shape[0]
+        if t.ndim != 1 or load.shape != t.shape or signals.shape != (len(t), nx):
+            raise ValueError(f"t and load must be (T,) and signals (T, {nx}) = (T, nx); got {t.shape}, {load.shape}, {signals.shape}")
+        self._check_times(t)
+        bad = ~(np.isfinite(load) & np.isfinite(signals).all(1))
+        if bad.any():
+            raise ValueError(f"sample {self._received + int(np.argmax(bad))} (t = {t[np.argmax(bad)]:g} s): load and signals must be finite")
+        if self._received == 0 and len(t):
+            self.start_time = float(t[0])
+        self._load = np.concatenate([self._load, load])
+        self._signals = np.concatenate([self._signals, signals.T], 1)
+        self._received += len(t)
+        done = []
+        step = self.chain.step_samples
+        while self._next_start() + step + 1 < self._received:  # the sample after the step's end is in
+            done.append(self._run_step())
+        return done
+
+    def finish(self) -> list[HealthStatus]:
+        """Run the step that ends at the record's last sample, if the record completes it."""
+        self._finished = True
+        if self._next_start() + self.chain.step_samples + 1 == self._received:
+            return [self._run_step()]
+        return []
+
+    def _next_start(self) -> int:
+        """Record index of the next step's first sample."""
+        return len(self.statuses) * self.chain.step_samples
+
+    def _check_times(self, t: np.ndarray) -> None:
+        h = self.chain.h
+        if self.start_time is None:
+            origin = float(t[0]) if len(t) else 0.0
+        else:
+            origin = self.start_time
+        expected = origin + h * np.arange(self._received, self._received + len(t))
+        off = np.abs(t - expected) > 0.01 * h
+        if off.any():
+            k = int(np.argmax(off))
+            raise ValueError(
+                f"sample {self._received + k}: t = {t[k]:.9g} s, expected {expected[k]:.9g} s "
+                f"(the chain samples every {h:g} s from the first sample)"
+            )
+
+    def _run_step(self) -> HealthStatus:
+        """Run the next step through the chain and drop the samples no later step needs."""
+        chain = self.chain
+        start, step = self._next_start(), chain.step_samples
+        offset = start - self._first  # the step's first sample in the buffer
+        end = offset + step + 1
+        # the derivative over the step, from the samples either side where the record has them
+        context = slice(max(offset - 1, 0), min(end + 1, self._load.shape[0]))
+        load_rate = np.gradient(self._load[context], chain.h)[offset - context.start :][: step + 1]
+        load = self._load[offset:end]
+        measured = self._signals[:, offset:end][None]
+        if self._reference_state is None:
+            self._reference_state = measured[:, :, 0] / chain.monitor.measurement_gain(chain.model.parameter_vector()[None])
+        reference, self._reference_state = simulate_measured(
+            chain.model.state_space, chain.h, load[None, :, None], load_rate[None, :, None], chain.model.parameter_vector()[None],
+            self._reference_state, chain.monitor.measurement_gain(chain.model.parameter_vector()[None]),
+        )
+        status = chain.update(measured, reference, load[None], load_rate[None])
+        self.statuses.append(status)
+        keep = start + step - 1  # the next step's start and the sample before it
+        self._load, self._signals = self._load[keep - self._first :], self._signals[:, keep - self._first :]
+        self._first = keep
+        return status
+
+
+def run_measurements(chain: PHMChain, measurements: Measurements, progress: Progress | None = None) -> ChainRun:
+    """A machine's recorded ``measurements`` through ``chain`` (N = 1, at their sample rate), a step at a time.
+
+    Raises:
+        ValueError: the record does not last one detection window (``DetectorConfig.window``).
+    """
+    needed = max(chain.config.step, chain.config.detector.window)
+    if measurements.duration < needed - 0.5 * chain.h:
+        raise ValueError(
+            f"measurements: the record lasts {measurements.duration:g} s; the chain needs at least {needed:g} s "
+            f"(one detection window), i.e. {round(needed / chain.h) + 1} samples at {1 / chain.h:g} Hz"
+        )
+    stream = StreamingChain(chain)
+    step = chain.step_samples
+    starts: Iterable[int] = range(0, len(measurements.t), step)
+    for start in starts if progress is None else progress(starts):
+        part = slice(start, start + step)
+        stream.feed(measurements.t[part], measurements.load[part], measurements.signals[part])
+    stream.finish()
+    return ChainRun.of(stream.statuses)
 
 
 def build_chain(

@@ -1,0 +1,170 @@
+"""Recorded measurements of a machine: the CSV format the PHM chain reads, checked before anything runs.
+
+One header row, then one row per sample. Columns, in any order:
+
+- ``t``: time (s), increasing, uniformly sampled (any start);
+- the load source's name (e.g. ``F``): the load's value (SI: N, V, ...);
+- one per storage element, named after it: an I element's flow (a velocity in m/s, a current in A),
+  a C element's displacement, its energy variable q (a spring's extension in m, a charge in C).
+
+Every cell is a plain decimal number (``1``, ``-0.25``, ``1.5e-3``); nothing else is read. The file must
+be a regular file of at most :data:`MAX_BYTES` bytes and :data:`MAX_ROWS` samples, checked before it is
+read whole. Every error names the file, the line (the header is line 1) and the column.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+import re
+import stat
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ea_gym.files import write_atomic
+from ea_gym.models import SystemModel
+
+#: the largest CSV read (bytes): about 6 hours at 100 Hz of a model with four storage elements
+MAX_BYTES = 256 * 2**20
+#: the most samples read
+MAX_ROWS = 2_000_000
+#: a sample's time may stray this fraction of the sampling period from the uniform grid
+TIME_TOLERANCE = 0.01
+
+_NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+
+
+class MeasurementError(ValueError):
+    """A measurement file that cannot be read as the format above; the message names the culprit."""
+
+
+@dataclass(frozen=True)
+class Measurements:
+    """A machine's recorded signals.
+
+    Attributes:
+        t: sample times (s), uniform, increasing, (T,).
+        load: the load source's value at every sample (SI), (T,).
+        signals: measured signal of every storage element (I: flow, C: displacement q), in
+            ``SystemModel.state_names`` order, (T, nx).
+    """
+
+    t: np.ndarray
+    load: np.ndarray
+    signals: np.ndarray
+
+    @property
+    def sample_period(self) -> float:
+        """Mean sampling period (s)."""
+        return float(self.t[-1] - self.t[0]) / (len(self.t) - 1)
+
+    @property
+    def duration(self) -> float:
+        """Time from the first sample to the last (s)."""
+        return float(self.t[-1] - self.t[0])
+
+
+def measurement_columns(model: SystemModel) -> tuple[str, ...]:
+    """The columns a measurement file of ``model`` has: t, the load source, every storage element."""
+    return ("t", model.load_source, *model.state_names)
+
+
+def read_measurements(
+    path: str | os.PathLike[str], model: SystemModel, max_bytes: int = MAX_BYTES, max_rows: int = MAX_ROWS
+) -> Measurements:
+    """Read and check a measurement CSV of ``model``.
+
+    Raises:
+        MeasurementError: not a regular file, too large, a missing, extra or repeated column, a row of
+            the wrong length, a cell that is not a finite number, or times that do not increase uniformly.
+    """
+    path = Path(path)
+    try:
+        info = path.stat()
+    except OSError as error:
+        raise MeasurementError(f"{path}: cannot read the measurements ({error.strerror})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise MeasurementError(f"{path}: measurements must be a regular file")
+    if info.st_size > max_bytes:
+        raise MeasurementError(f"{path}: {info.st_size} bytes, more than the {max_bytes} read; split the record")
+    with path.open(newline="", encoding="utf-8", errors="replace") as file:
+        rows = csv.reader(file)
+        header = next(rows, None)
+        if header is None:
+            raise MeasurementError(f"{path}: empty file; expected a header row with columns {', '.join(measurement_columns(model))}")
+        names = [name.strip() for name in header]
+        order = _column_order(path, names, model)
+        values = _numbers(path, enumerate(rows, start=2), names, max_rows)
+    if len(values) < 2:
+        raise MeasurementError(f"{path}: {len(values)} sample(s); a record needs at least 2")
+    table = np.array(values)[:, order]
+    _check_times(path, table[:, 0])
+    return Measurements(t=table[:, 0], load=table[:, 1], signals=table[:, 2:])
+
+
+def _column_order(path: Path, header: list[str], model: SystemModel) -> list[int]:
+    """Index in ``header`` of every column of :func:`measurement_columns`."""
+    expected = measurement_columns(model)
+    described = f"model {model.name} needs columns {', '.join(expected)}"
+    for k, name in enumerate(header):
+        if name in header[:k]:
+            raise MeasurementError(f"{path}: column {name!r} appears twice ({described})")
+    for name in expected:
+        if name not in header:
+            raise MeasurementError(f"{path}: missing column {name!r} ({described})")
+    for name in header:
+        if name not in expected:
+            raise MeasurementError(f"{path}: unexpected column {name!r} ({described})")
+    return [header.index(name) for name in expected]
+
+
+def _numbers(path: Path, rows: Iterable[tuple[int, list[str]]], header: list[str], max_rows: int) -> list[list[float]]:
+    """Every data row (with its line number) as floats, refusing anything that is not a finite decimal number."""
+    values = []
+    width = len(header)
+    for line, row in rows:
+        if not row:
+            raise MeasurementError(f"{path}: line {line} is empty; expected {width} numbers")
+        if len(values) == max_rows:
+            raise MeasurementError(f"{path}: more than {max_rows} samples, the most read; split the record")
+        if len(row) != width:
+            raise MeasurementError(f"{path}: line {line} has {len(row)} cells, the header {width}")
+        numbers = []
+        for column, cell in enumerate(row):
+            text = cell.strip()
+            if not _NUMBER.fullmatch(text):
+                what = "an empty cell" if not text else f"{text[:20]!r}"
+                raise MeasurementError(f"{path}: line {line}, column {header[column]!r}: {what} where a number is expected")
+            number = float(text)
+            if not np.isfinite(number):
+                raise MeasurementError(f"{path}: line {line}, column {header[column]!r}: {text[:20]!r} overflows a float")
+            numbers.append(number)
+        values.append(numbers)
+    return values
+
+
+def _check_times(path: Path, t: np.ndarray) -> None:
+    """``t`` increases, every interval within ``TIME_TOLERANCE`` of the median one (a gap, a repeated
+    or a jittered sample is refused at its line)."""
+    step = np.diff(t)
+    if np.any(step <= 0):
+        k = int(np.argmax(step <= 0)) + 1
+        raise MeasurementError(f"{path}: line {k + 2}: t = {t[k]:.9g} s does not increase (the line before has {t[k - 1]:.9g} s)")
+    period = float(np.median(step))
+    uneven = np.abs(step - period) > TIME_TOLERANCE * period
+    if np.any(uneven):
+        k = int(np.argmax(uneven)) + 1
+        raise MeasurementError(
+            f"{path}: line {k + 2}: t = {t[k]:.9g} s is {step[k - 1]:.6g} s after the line before, not the "
+            f"sampling period {period:.6g} s: t must be uniformly sampled (a gap or jitter in the record)"
+        )
+
+
+def write_measurements(path: str | os.PathLike[str], model: SystemModel, measurements: Measurements) -> Path:
+    """Write ``measurements`` of ``model`` as a CSV :func:`read_measurements` reads back exactly (atomically)."""
+    table = np.column_stack([measurements.t, measurements.load, measurements.signals])
+    header = ",".join(measurement_columns(model))
+    return write_atomic(path, lambda tmp: np.savetxt(tmp, table, fmt="%.17g", delimiter=",", header=header, comments=""))
