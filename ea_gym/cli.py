@@ -4,42 +4,77 @@ from __future__ import annotations
 
 import argparse
 import sys
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-from ea_gym.cli_args import COMMAND_GROUP, Subcommands, positive_float
+from ea_gym.cli_args import COMMAND_GROUP, Subcommands, non_negative_float, positive_float
 from ea_gym.models import ParameterError, SystemModel
 from ea_gym.scenario import ScenarioError
 
+if TYPE_CHECKING:
+    from ea_gym.scenario import Scenario
+
 
 def _simulate(args: argparse.Namespace) -> int:
+    from ea_gym.scenario import load_scenario
+
+    if args.out is None and args.csv is None:
+        raise ValueError("simulate: give --out DIR (Energy Activity) or --csv FILE (measurements), or both")
+    scenario = load_scenario(args.scenario, args.system)
+    if args.csv is not None:
+        _write_measurements(scenario, Path(args.csv))
+    if args.out is not None:
+        _write_energy(scenario, Path(args.out), args.window)
+    return 0
+
+
+def _write_measurements(scenario: Scenario, path: Path) -> None:
+    """The scenario's sensor record (its noise and seed) as a measurement CSV."""
+    import numpy as np
+
+    from ea_gym.measurements import write_measurements
+    from ea_gym.phm.harness import scenario_measurements
+
+    measurements = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
+    write_measurements(path, scenario.model, measurements)
+    print(f"wrote {path} ({len(measurements.t)} samples at {scenario.sample_rate:g} Hz, sensor noise {scenario.noise:g})")
+
+
+def _write_energy(scenario: Scenario, out: Path, window: float) -> None:
+    """Every element's EA and EAI per window of the scenario's true signals, with their figure."""
     from ea_gym.energy import windowed_energy
     from ea_gym.files import write_json
     from ea_gym.plant import simulate
     from ea_gym.plots import plot_energy
-    from ea_gym.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario, args.system)
     trajectory = simulate(scenario)
-    energy = windowed_energy(
-        trajectory.power, trajectory.sample_period, args.window, scenario.model.rco_elements
-    )
+    energy = windowed_energy(trajectory.power, trajectory.sample_period, window, scenario.model.rco_elements)
     elements = {}
     for name, ea in energy.ea.items():
         elements[name] = {"ea": ea.tolist()}
         if name in energy.eai:
             elements[name]["eai"] = energy.eai[name].tolist()
-    out = Path(args.out)
     plot_energy(trajectory, energy, out / "energy.png")
-    write_json(out / "energy.json", {"window": args.window, "t": energy.t.tolist(), "elements": elements})
-    print(f"wrote {out / 'energy.json'} and {out / 'energy.png'} ({len(energy.t)} windows of {args.window:g} s)")
-    return 0
+    write_json(out / "energy.json", {"window": window, "t": energy.t.tolist(), "elements": elements})
+    print(f"wrote {out / 'energy.json'} and {out / 'energy.png'} ({len(energy.t)} windows of {window:g} s)")
+
+
+def _progress(steps: Iterable[int]) -> Iterable[int]:
+    from tqdm import tqdm
+
+    return tqdm(steps, desc="PHM chain", unit="step", leave=False)
 
 
 def _phm(args: argparse.Namespace) -> int:
+    if (args.scenario is None) == (args.measurements is None):
+        raise ValueError("give a SCENARIO to simulate or --measurements DATA.csv (with --system), one of them")
+    if args.measurements is not None:
+        return _phm_measurements(args)
+    if args.noise is not None:
+        raise ValueError("--noise goes with --measurements; a scenario names its sensor noise")
     import numpy as np
-    from tqdm import tqdm
 
     from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_scenario
     from ea_gym.reporting import write_phm_outputs
@@ -51,10 +86,9 @@ def _phm(args: argparse.Namespace) -> int:
     classifier = classifier_for(model, rng, args.classifier)
     config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
     chain = build_chain(model, config, classifier, rng)
-    run = run_scenario(scenario, chain, rng, progress=lambda steps: tqdm(steps, desc="PHM chain", unit="step", leave=False))
+    run = run_scenario(scenario, chain, rng, progress=_progress)
     results = write_phm_outputs(Path(args.out), run, chain, scenario, f"PHM chain on {args.scenario}")
-    isolated = results["isolated_parameter"]
-    print(f"detection at {results['detection_time']} s, isolated parameter {isolated}; wrote {args.out}/results.json and report.md")
+    _print_outcome(results, args.out)
     return 0
 
 
@@ -106,6 +140,39 @@ def _parameter_lines(model: SystemModel) -> list[str]:
     return lines
 
 
+def _phm_measurements(args: argparse.Namespace) -> int:
+    """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth."""
+    import numpy as np
+
+    from ea_gym.measurements import read_measurements
+    from ea_gym.model_files import load_system
+    from ea_gym.phm import PHMConfig, build_chain, classifier_for
+    from ea_gym.phm.harness import run_measurements
+    from ea_gym.reporting import write_phm_outputs
+
+    if args.system is None:
+        raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
+    model = load_system(args.system)
+    measurements = read_measurements(args.measurements, model)
+    noise = PHMConfig().noise if args.noise is None else args.noise
+    config = PHMConfig(sample_rate=measurements.sample_rate, noise=noise)
+    rng = np.random.default_rng(args.seed)
+    chain = build_chain(model, config, classifier_for(model, rng, args.classifier), rng)
+    run = run_measurements(chain, measurements, progress=_progress)
+    start = f"Times are seconds since the record's first sample (t = {measurements.t[0]:g} s in {args.measurements})."
+    results = write_phm_outputs(
+        Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=[start],
+        measurements=str(args.measurements),
+    )
+    _print_outcome(results, args.out)
+    return 0
+
+
+def _print_outcome(results: dict, out: str) -> None:
+    isolated = results["isolated_parameter"]
+    print(f"detection at {results['detection_time']} s, isolated parameter {isolated}; wrote {out}/results.json and report.md")
+
+
 def _reproduce(args: argparse.Namespace) -> int:
     from ea_gym.diagnosis.classifier import FaultClassifier
     from ea_gym.reproduce import headline, reproduce
@@ -135,17 +202,22 @@ def build_parser() -> argparse.ArgumentParser:
 def _add_simulate(commands: Subcommands) -> None:
     simulate = commands.add_parser(
         "simulate",
-        help="simulate a scenario and write each element's Energy Activity and EAI per window",
+        help="simulate a scenario: each element's Energy Activity and EAI per window, or its sensors' record as CSV",
         description=(
             "Simulate the plant of a scenario file (JSON or YAML) under its load and fault profile and write "
             "DIR/energy.json (EA per window of every element, EAI of the R, C and I components) and "
             "DIR/energy.png (signals, parameters, EA and EAI over time). Computed from the plant's true "
-            "efforts and flows."
+            "efforts and flows. With --csv, also (or only) the measurements its sensors record."
         ),
     )
     simulate.add_argument("scenario", help="scenario file (.json, .yaml or .yml)")
     _add_system(simulate)
-    simulate.add_argument("--out", required=True, metavar="DIR", help="directory for energy.json and energy.png (created)")
+    simulate.add_argument("--out", metavar="DIR", help="directory for energy.json and energy.png (created)")
+    simulate.add_argument(
+        "--csv", metavar="FILE",
+        help=("write what the plant's sensors record, with the scenario's sensor noise, as a measurement CSV for "
+              "'ea-gym phm --measurements' (columns t, the load source, every storage element's signal)"),
+    )
     simulate.add_argument(
         "--window", type=positive_float, default=1.0, metavar="SECONDS",
         help="Energy Activity window length in s, a whole number of sample periods (default: 1.0)",
@@ -156,21 +228,38 @@ def _add_simulate(commands: Subcommands) -> None:
 def _add_phm(commands: Subcommands) -> None:
     phm = commands.add_parser(
         "phm",
-        help="run the whole PHM chain on a scenario: detection, isolation, parameter estimate, End of Life and RUL",
+        help="run the whole PHM chain on a scenario or on recorded measurements: detection, isolation, estimate, End of Life, RUL",
         description=(
-            "Simulate the scenario's plant and the fault-free reference model, measure with the scenario's "
-            "sensor noise, and run the Energy-Activity PHM chain step by step. Writes DIR/results.json "
-            "(detection time, isolated parameter, class probabilities, the parameter estimate over time, "
-            "End-of-Life predictions and, when the scenario has a fault, metrics against the truth), the "
-            "figures (time-frequency map, estimate vs truth, estimate error, RUL, signals) and DIR/report.md."
+            "Run the Energy-Activity PHM chain step by step on a simulated scenario (its plant, the fault-free "
+            "reference model, measured with the scenario's sensor noise) or on a machine's recorded measurements "
+            "(--system MODEL --measurements DATA.csv: the reference model driven by the recorded load). Writes "
+            "DIR/results.json (detection time, isolated parameter, class probabilities, the parameter estimate "
+            "over time, End-of-Life predictions and, for a scenario with a fault, metrics against the truth), the "
+            "figures (time-frequency map, estimate, RUL, signals; for a scenario also the estimate's error) and "
+            "DIR/report.md. The measurement CSV: one header row; a column t (s, increasing, uniformly sampled); "
+            "a column named after the model's load source (its value, SI); one column per storage element named "
+            "after it: an I element's flow (velocity, current), a C element's displacement q (extension, charge)."
         ),
     )
-    phm.add_argument("scenario", help="scenario file (.json, .yaml or .yml)")
-    _add_system(phm)
+    phm.add_argument("scenario", nargs="?", help="scenario file (.json, .yaml or .yml); or use --measurements")
+    _add_system(phm, "; with --measurements, the machine's model (required)")
     phm.add_argument("--out", required=True, metavar="DIR", help="directory for results.json, report.md and figures (created)")
     phm.add_argument(
         "--classifier", metavar="PATH", default=None,
         help="isolation network file (default: the one shipped for the system; trained on the spot if there is none)",
+    )
+    phm.add_argument("--measurements", metavar="DATA.csv", help="run the chain on this recorded CSV instead of a scenario")
+    phm.add_argument(
+        "--noise", type=non_negative_float, metavar="FRACTION",
+        help=("with --measurements: the sensors' noise std as a fraction of each signal's RMS over a 1 s step "
+              "(0.01 = 1 %%), which the detection thresholds are calibrated for (default: PHMConfig's, 0, "
+              "noise-free). Take it from a fault-free stretch of the record: the std of a signal minus its "
+              "smoothed self, over the signal's RMS (or the sensor's data sheet). Too low raises alarms on a "
+              "healthy machine; too high detects faults later."),
+    )
+    phm.add_argument(
+        "--seed", type=int, default=0,
+        help="with --measurements: seed of the threshold calibration (and of a network trained on the spot) (default 0)",
     )
     phm.set_defaults(run=_phm)
 
@@ -193,10 +282,10 @@ def _add_reproduce(commands: Subcommands) -> None:
     reproduce.set_defaults(run=_reproduce)
 
 
-def _add_system(parser: argparse.ArgumentParser) -> None:
+def _add_system(parser: argparse.ArgumentParser, also: str = "") -> None:
     parser.add_argument(
         "--system", metavar="MODEL", default=None,
-        help="the system to run instead of the scenario's: a built-in name (ea-gym models) or a model file (.yaml, .yml, .json)",
+        help=f"the system to run instead of the scenario's: a built-in name (ea-gym models) or a model file (.yaml, .yml, .json){also}",
     )
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any, Protocol
 
-__all__ = ["COMMAND_GROUP", "Subcommands", "positive_int", "non_negative_int", "positive_float"]
+__all__ = ["COMMAND_GROUP", "Subcommands", "positive_int", "non_negative_int", "positive_float", "non_negative_float"]
 
 #: entry-point group of subcommands from other packages: each entry is ``add(commands: Subcommands) -> None``,
 #: which adds its parser with ``commands.add_parser`` and sets ``run`` (``args -> exit code``) as its default
@@ -40,4 +40,12 @@ def positive_float(text: str) -> float:
     value = float(text)
     if not value > 0:
         raise argparse.ArgumentTypeError(f"expected a positive number of seconds, got {text}")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """A finite number >= 0 (argparse type)."""
+    value = float(text)
+    if not 0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
     return value

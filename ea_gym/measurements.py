@@ -62,6 +62,12 @@ class Measurements:
         return float(self.t[-1] - self.t[0]) / (len(self.t) - 1)
 
     @property
+    def sample_rate(self) -> float:
+        """Samples per second (Hz), a whole number where it is one within 1e-6."""
+        rate = 1.0 / self.sample_period
+        return float(round(rate)) if abs(rate - round(rate)) <= 1e-6 * rate else rate
+
+    @property
     def duration(self) -> float:
         """Time from the first sample to the last (s)."""
         return float(self.t[-1] - self.t[0])
@@ -123,7 +129,7 @@ def _column_order(path: Path, header: list[str], model: SystemModel) -> list[int
 
 def _numbers(path: Path, rows: Iterable[tuple[int, list[str]]], header: list[str], max_rows: int) -> list[list[float]]:
     """Every data row (with its line number) as floats, refusing anything that is not a finite decimal number."""
-    values = []
+    values: list[list[float]] = []
     width = len(header)
     for line, row in rows:
         if not row:

@@ -7,6 +7,8 @@ the figures; :mod:`~ea_gym.reporting.report`: ``report.md`` and the output direc
 from ea_gym.reporting.figures import (
     FIGURES,
     PLOTS,
+    RECORDED_CAPTIONS,
+    TRUTH_FIGURES,
     plot_estimate,
     plot_estimate_error,
     plot_rul,
@@ -23,6 +25,8 @@ __all__ = [
     "LAMBDA",
     "MIN_PHASE_PREDICTIONS",
     "PLOTS",
+    "RECORDED_CAPTIONS",
+    "TRUTH_FIGURES",
     "chain_results",
     "plot_estimate",
     "plot_estimate_error",

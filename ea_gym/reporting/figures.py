@@ -23,7 +23,16 @@ from ea_gym.diagnosis.features import residual_spectrogram
 from ea_gym.files import save_figure
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.pyplot import plt
-from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results, estimate_series, isolated_class, truth_limits
+from ea_gym.reporting.results import (
+    ALPHA,
+    ESTIMATION_START,
+    chain_results,
+    estimate_series,
+    fault_of,
+    faulty_parameter,
+    isolated_class,
+    truth_limits,
+)
 from ea_gym.scenario import Scenario
 
 #: figure name -> (file name, caption)
@@ -34,12 +43,20 @@ FIGURES: dict[str, tuple[str, str]] = {
     "rul": ("rul.png", "Remaining Useful Life: prediction, interval and truth with the alpha cone"),
     "signals": ("signals.png", "Measured and reference Energy Activity per element, detection statistic"),
 }
+#: the figures that compare with the truth: not drawn for recorded measurements
+TRUTH_FIGURES = ("estimate_error",)
+#: the captions of the figures of recorded measurements, where they differ: no truth is drawn
+RECORDED_CAPTIONS: dict[str, str] = {
+    "estimate": "Parameter estimate, safe limits and End-of-Life extrapolations (paper Fig 12; no truth: recorded measurements)",
+    "rul": "Remaining Useful Life: prediction and interval (no truth: recorded measurements)",
+}
 
 
-def _mark_events(ax: Any, results: dict, scenario: Scenario, label: bool = True) -> None:
+def _mark_events(ax: Any, results: dict, scenario: Scenario | None, label: bool = True) -> None:
     """Vertical lines at the fault onset, the profile's breakpoints and the detection time."""
-    if scenario.fault is not None:
-        times = scenario.fault.profile.times
+    fault = fault_of(scenario)
+    if fault is not None:
+        times = fault.profile.times
         for j, tb in enumerate(times):
             ax.axvline(tb, color="0.6", lw=0.8, ls=":", label="profile breakpoints" if label and j == 0 else None)
     if results.get("detection_time") is not None:
@@ -63,7 +80,7 @@ def plot_within(ax: Any, x: ArrayLike, y: ArrayLike, bottom: float, top: float, 
                     clip_on=False, label=f"{label}: off the axis, {'above' if edge == top else 'below'} it")
 
 
-def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
                         results: dict | None = None) -> Path:
     """Paper Fig 9: |STFT| of the I element's EA residual series over time and frequency.
 
@@ -130,9 +147,9 @@ def _fit_steps(run: ChainRun, chain: PHMChain, results: dict, parameter: str) ->
     return sorted(set(steps))
 
 
-def _estimate_title(parameter: str, results: dict, scenario: Scenario) -> str:
+def _estimate_title(parameter: str, results: dict, scenario: Scenario | None) -> str:
     """What the estimate figure shows, and whether the parameter is the faulty one."""
-    fault = scenario.fault.parameter if scenario.fault is not None else None
+    fault = faulty_parameter(scenario)
     isolated = results["estimate"]["parameter"]
     if isolated is None:
         state = (results.get("isolation") or {}).get("state", "no alarm")
@@ -144,7 +161,7 @@ def _estimate_title(parameter: str, results: dict, scenario: Scenario) -> str:
     return f"Estimate of {isolated} and End-of-Life extrapolation"
 
 
-def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scenario, results: dict, parameter: str,
+def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scenario | None, results: dict, parameter: str,
                          ylim: tuple[float, float], end: float) -> float:
     """The isolated ``parameter``'s trend fits up to its limits, the predicted End of Life (x) and the true
     trend's (circle); returns the right end of the time axis (s)."""
@@ -152,7 +169,7 @@ def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scen
     right = end
     colors = ["tab:orange", "tab:purple", "tab:brown"]
     # the truth's End of Life only for the faulty parameter
-    fault = scenario.fault if scenario.fault is not None and scenario.fault.parameter == parameter else None
+    fault = fault_of(scenario) if faulty_parameter(scenario) == parameter else None
     marked = {"predicted": False, "true": False}
     for k, i in enumerate(_fit_steps(run, chain, results, parameter)):
         prediction = run.statuses[i].end_of_life[0]
@@ -170,7 +187,7 @@ def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scen
         ax.plot([eol], [level], "x", color=color, ms=10, mew=2.5, zorder=5, label=None if marked["predicted"] else "predicted EoL")
         marked["predicted"] = True
         text = f"EoL {eol:.1f} s"
-        if fault is not None:
+        if scenario is not None and fault is not None:
             limits = truth_limits(scenario, parameter)
             true_eol = float(fault.profile.trend_end_of_life(np.array([prediction.t]), limits)[0])
             if math.isfinite(true_eol):
@@ -187,7 +204,7 @@ def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scen
     return right
 
 
-def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
                   results: dict | None = None) -> Path:
     """Paper Fig 12: the isolated parameter's estimate vs its truth, the safe limits, and the degree-1
     extrapolations from a prediction time in each phase up to the limit, with the predicted End of
@@ -203,13 +220,13 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
     favoured = (results.get("isolation") or {}).get("favoured")
     if estimate["parameter"] is None and favoured is not None:
         estimate = estimate_series(run, chain, chain.classes.index(favoured))
-    parameter = estimate["parameter"] or (scenario.fault.parameter if scenario.fault else None)
+    parameter = estimate["parameter"] or faulty_parameter(scenario)
     fig, ax = plt.subplots(figsize=(10, 5.5))
     end = float(run.t[-1])
     if parameter is None:
         ax.text(0.5, 0.5, "no parameter isolated", ha="center", transform=ax.transAxes)
         return save_figure(fig, path)
-    unit = scenario.model.units.get(parameter, "")
+    unit = chain.model.units.get(parameter, "")
     lower, upper = chain.model.safe_limits[parameter]
     span = upper - lower
     ylim = (lower - 0.15 * span, upper + 0.35 * span)  # room for the legend above the limits
@@ -217,8 +234,9 @@ def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str 
     if results["estimate"]["parameter"]:
         right = _draw_extrapolations(ax, run, chain, scenario, results, parameter, ylim, end)
     right = min(right, 2.0 * end) * 1.02
-    tt, truth = _truth_curve(scenario, parameter, right)
-    ax.plot(tt, np.clip(truth, *ylim), color="k", lw=1.5, label=f"true {parameter}")
+    if scenario is not None:
+        tt, truth = _truth_curve(scenario, parameter, right)
+        ax.plot(tt, np.clip(truth, *ylim), color="k", lw=1.5, label=f"true {parameter}")
     undecided = results["estimate"]["parameter"] is None
     plot_within(ax, estimate["t"], estimate["value"], *ylim, color="0.45" if undecided else "tab:blue",
                 label=f"estimate of {parameter}" + (" (favoured, not isolated)" if undecided else ""))
@@ -284,7 +302,7 @@ def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path
     return save_figure(fig, path)
 
 
-def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
              results: dict | None = None) -> Path:
     """RUL predictions (points, per parameter they were made for) and interval (shaded) over time vs the
     true RUL of the profile's trend, with the alpha = 0.2 cone (dashed). The y axis is [0, 2 x the
@@ -295,9 +313,10 @@ def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.
     end = float(run.t[-1])
     tt = np.linspace(0.0, end, 2401)
     top = None
-    fault = scenario.fault.parameter if scenario.fault is not None else None
-    if scenario.fault is not None and fault is not None:
-        true_eol = scenario.fault.profile.trend_end_of_life(tt, truth_limits(scenario, fault))
+    fault = faulty_parameter(scenario)
+    fault_spec = fault_of(scenario)
+    if scenario is not None and fault_spec is not None and fault is not None:
+        true_eol = fault_spec.profile.trend_end_of_life(tt, truth_limits(scenario, fault))
         true_rul = np.where(np.isfinite(true_eol), true_eol - tt, np.nan)
         # break the line where the true EoL jumps (a new segment)
         jumps = np.flatnonzero(np.abs(np.diff(np.nan_to_num(true_eol, posinf=1e300))) > 1e-6) + 1
@@ -350,7 +369,7 @@ def _draw_rul_predictions(ax: Any, chain: PHMChain, predictions: list[dict], t: 
                         label=f"RUL of {parameter}, isolated wrongly (the fault is in {fault})")
 
 
-def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
+def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
                  results: dict | None = None) -> Path:
     """Measured vs reference EA of every element per step, and the detection statistics (every element's
     EA residual and the energy balance's) relative to their thresholds (log scale; the alarm needs one

@@ -17,7 +17,7 @@ import numpy as np
 
 from ea_gym.files import write_json, write_text
 from ea_gym.phm import ChainRun, PHMChain
-from ea_gym.reporting.figures import FIGURES, PLOTS
+from ea_gym.reporting.figures import FIGURES, PLOTS, RECORDED_CAPTIONS, TRUTH_FIGURES
 from ea_gym.reporting.results import ALPHA, LAMBDA, chain_results
 from ea_gym.scenario import Scenario
 
@@ -51,7 +51,9 @@ def isolation_text(results: dict) -> str:
 
 
 def _summary_rows(results: dict) -> list[tuple[str, str]]:
-    rows = [
+    measurements = results.get("run", {}).get("measurements")
+    rows = [("recorded measurements (truth unknown: no errors against it)", str(measurements))] if measurements else []
+    rows += [
         ("detection time (s)", _fmt(results.get("detection_time"))),
         ("isolated parameter", isolation_text(results)),
         ("class probabilities (the chain's belief at the end, which isolates)", _probabilities(results.get("class_probabilities", {}))),
@@ -129,6 +131,8 @@ def _report_text(out: Path, results: dict, figures: dict[str, Path], title: str,
         lines += ["", "## Figures", ""]
         for name, path in figures.items():
             caption = FIGURES.get(name, (None, name))[1]
+            if results.get("run", {}).get("measurements"):
+                caption = RECORDED_CAPTIONS.get(name, caption)
             relative = Path(os.path.relpath(Path(path), out)).as_posix()
             lines += [f"### {caption}", "", f"![{caption}]({relative})", ""]
     for section in sections or []:
@@ -144,10 +148,11 @@ def write_phm_report(out: Path, results: dict, figures: dict[str, Path], title: 
     return write_text(out / "report.md", _report_text(out, results, figures, title, sections))
 
 
-def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scenario, title: str,
-                      sections: list[str] | None = None) -> dict:
+def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scenario | None, title: str,
+                      sections: list[str] | None = None, measurements: str | None = None) -> dict:
     """Results, figures and report of a run in ``out``: ``results.json``, ``report.md`` and the PNGs of
-    :data:`FIGURES`.
+    :data:`FIGURES`. ``scenario`` None: a run of recorded ``measurements`` (their file), whose truth is
+    unknown: no metrics and none of the :data:`TRUTH_FIGURES`.
 
     Everything is drawn in a temporary directory beside ``out`` and moved in only when all of it
     succeeded; ``results.json`` is written last, so its presence means the directory is complete.
@@ -155,11 +160,13 @@ def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scena
     """
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    results = chain_results(run, chain, scenario)
+    results = chain_results(run, chain, scenario, measurements)
     staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
     try:
         figures = {}
         for name, plot in PLOTS.items():
+            if scenario is None and name in TRUTH_FIGURES:
+                continue
             figures[name] = plot(run, chain, scenario, staging / FIGURES[name][0], results=results)
         write_phm_report(staging, results, figures, title, sections)
         out.mkdir(parents=True, exist_ok=True)

@@ -30,7 +30,7 @@ from ea_gym.files import finite_or_none, json_ready
 from ea_gym.metrics import eol_error, estimation_errors, prognostic_report
 from ea_gym.numerics import TINY
 from ea_gym.phm import ChainRun, HealthStatus, PHMChain
-from ea_gym.scenario import Scenario
+from ea_gym.scenario import FaultSpec, Scenario
 
 #: Estimation errors are scored from this time on (s): the estimator's start-up is left out.
 ESTIMATION_START = 10.0
@@ -89,6 +89,18 @@ def _limit(status: HealthStatus) -> str | None:
     """Which limit the status's End of Life refers to."""
     prediction = status.end_of_life[0]
     return None if prediction is None else prediction.limit
+
+
+def fault_of(scenario: Scenario | None) -> FaultSpec | None:
+    """The scenario's fault, the truth a run is scored against; None without a fault or a scenario (recorded
+    measurements, whose truth is unknown)."""
+    return None if scenario is None else scenario.fault
+
+
+def faulty_parameter(scenario: Scenario | None) -> str | None:
+    """The parameter of the scenario's fault; None without one (:func:`fault_of`)."""
+    fault = fault_of(scenario)
+    return None if fault is None else fault.parameter
 
 
 def truth_limits(scenario: Scenario, parameter: str) -> tuple[float, float]:
@@ -197,8 +209,12 @@ def _phase_metrics(predictions: list[dict[str, Any]], scenario: Scenario) -> tup
     return phases, without_truth
 
 
-def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
+def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, measurements: str | None = None) -> dict:
     """The results of a run, JSON-ready (inf and NaN are None).
+
+    Args:
+        scenario: the simulated scenario, whose fault is the truth the run is scored against; None for
+            recorded ``measurements`` (their file's name), whose truth is unknown: no metrics.
 
     Keys:
         detection_time: first alarm (s) or None.
@@ -219,7 +235,8 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
         eol_predictions: [{"t", "parameter", "eol", "limit", "rul", "rul_low", "rul_high"}] for every
             step with a finite End of Life (s) of a suspect the isolation was confident of; "parameter" is
             the one isolated at that step, "limit" "lower" or "upper".
-        run: duration, steps, noise, estimate lag, frame (s).
+        run: scenario file or measurements file, sample rate (Hz), duration, steps, noise, estimate lag,
+            frame (s).
         metrics: only when the scenario has a fault: fault parameter, fault onset (s), detection delay
             (s), isolation_correct, isolation_outcome (:func:`isolation_outcome`), and when isolation
             is correct: "estimation" (errors of the estimate against the truth at its stamps from
@@ -252,7 +269,8 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
         "estimate": estimate,
         "eol_predictions": predictions,
         "run": {
-            "scenario": scenario.source,
+            **({"scenario": scenario.source} if scenario is not None else {"measurements": measurements}),
+            "sample_rate": float(chain.config.sample_rate),
             "duration": float(run.t[-1]),
             "steps": len(statuses),
             "noise": float(chain.config.noise),
@@ -260,7 +278,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario) -> dict:
             "frame": float(chain.config.frame),
         },
     }
-    if scenario.fault is not None:
+    if scenario is not None and scenario.fault is not None:
         results["metrics"] = _fault_metrics(scenario, scenario.fault.parameter, detection_time, isolated_parameter, estimate, predictions)
     return json_ready(results)
 
