@@ -15,6 +15,7 @@ from ea_gym.diagnosis.monitor import Monitor, MonitorConfig
 from ea_gym.energy import window_samples
 from ea_gym.measurements import Measurements
 from ea_gym.models import SystemModel
+from ea_gym.numerics import TINY
 from ea_gym.phm.chain import HealthStatus, PHMChain
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import calibrate_thresholds
@@ -53,12 +54,39 @@ class ChainRun:
         return cls(statuses=statuses, t=ends, true_parameters=true_parameters, residual_series=residuals)
 
 
-def nominal_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
-    """The nominal model's signals under the load, started from the first measured sample, (N, nx, T)."""
-    nominal = np.repeat(chain.model.parameter_vector()[None], len(measured), 0)
+def fitted_initial_state(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
+    """The nominal model's energy variables at the first sample that best explain the signals given, (N, nx).
+
+    Least squares over the window (N, nx, T): the measured signals minus the model's response to the
+    load from rest, against its free responses from a unit value of each energy variable, each signal
+    weighed by the inverse of its RMS (the sensor noise scales with it). Started from one noisy sample
+    instead, a lightly damped reference rings against the plant for tens of seconds (the
+    spring-mass-damper's free oscillation decays in 2 m / b = 40 s), and detection reads that as a fault.
+    """
+    n, nx, samples = measured.shape
+    space, h = chain.model.state_space, chain.h
+    nominal = np.repeat(chain.model.parameter_vector()[None], max(n, nx), 0)
     gain = chain.monitor.measurement_gain(nominal)
+    forced, _ = simulate_measured(space, h, load[..., None], load_rate[..., None], nominal[:n], np.zeros((n, nx)), gain[:n])
+    rest = np.zeros((nx, samples, space.n_inputs))
+    free, _ = simulate_measured(space, h, rest, rest, nominal[:nx], np.eye(nx), gain[:nx])  # (state, signal, sample)
+    states = np.empty((n, nx))
+    for k in range(n):
+        weight = 1.0 / np.maximum(np.sqrt(np.mean(measured[k] ** 2, axis=-1)), TINY)
+        design = (free * weight[None, :, None]).reshape(nx, -1).T
+        target = ((measured[k] - forced[k]) * weight[:, None]).reshape(-1)
+        states[k] = np.linalg.lstsq(design, target, rcond=None)[0]
+    return states
+
+
+def nominal_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
+    """The nominal model's signals under the load, (N, nx, T), started from the state fitted to the first
+    step (:func:`fitted_initial_state`)."""
+    nominal = np.repeat(chain.model.parameter_vector()[None], len(measured), 0)
+    first = slice(0, chain.step_samples + 1)
+    start = fitted_initial_state(chain, measured[..., first], load[:, first], load_rate[:, first])
     signals, _ = simulate_measured(
-        chain.model.state_space, chain.h, load[..., None], load_rate[..., None], nominal, measured[..., 0] / gain, gain
+        chain.model.state_space, chain.h, load[..., None], load_rate[..., None], nominal, start, chain.monitor.measurement_gain(nominal)
     )
     return signals
 
@@ -141,7 +169,7 @@ class StreamingChain:
     """The chain on one machine's recorded signals, fed in chunks of any length as they arrive.
 
     The reference model (nominal parameters) runs alongside, driven by the recorded load and started
-    from the first measured sample. The load's derivative is its central difference (one-sided at the
+    from the state that best explains the first step (:func:`fitted_initial_state`). The load's derivative is its central difference (one-sided at the
     record's ends), so the load between samples is the cubic through them (Catmull-Rom). A step is
     processed once the sample after its end has arrived (the derivative there needs it); ``finish``
     processes the last one at the record's end. The statuses do not depend on how the record is chunked.
@@ -243,7 +271,7 @@ class StreamingChain:
         load = self._load[offset:end]
         measured = self._signals[:, offset:end][None]
         if self._reference_state is None:
-            self._reference_state = measured[:, :, 0] / chain.monitor.measurement_gain(chain.model.parameter_vector()[None])
+            self._reference_state = fitted_initial_state(chain, measured, load[None], load_rate[None])
         reference, self._reference_state = simulate_measured(
             chain.model.state_space, chain.h, load[None, :, None], load_rate[None, :, None], chain.model.parameter_vector()[None],
             self._reference_state, chain.monitor.measurement_gain(chain.model.parameter_vector()[None]),

@@ -110,7 +110,8 @@ def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | Non
         colorbar.set_label(f"|STFT| of the EA residual of {name} (J)")
         _mark_events(ax, results, scenario)
         ax.set_xlim(0, float(run.t[-1]))
-        ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
+        if ax.get_legend_handles_labels()[0]:  # nothing to mark without a fault profile or an alarm
+            ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
     ax.set_xlabel(f"time (s, centre of the {chain.config.frame:g} s STFT window, hop {hop * sub:g} s)")
     ax.set_ylabel("frequency (Hz)")
     ax.set_title(f"Time-frequency map of the EA residual of the I element {name}")
@@ -341,7 +342,10 @@ def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: st
     ax.set_ylabel("RUL (s)")
     ax.set_title("Remaining Useful Life")
     ax.grid(alpha=0.3)
-    ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
+    if ax.get_legend_handles_labels()[0]:  # no truth, no alarm: nothing drawn
+        ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
+    else:
+        ax.text(0.5, 0.5, "no End of Life predicted", ha="center", transform=ax.transAxes)
     fig.tight_layout()
     return save_figure(fig, path)
 

@@ -1,0 +1,316 @@
+"""Recorded measurements: the CSV format (written exactly, every bad file named), the streaming chain
+(any chunking, the same statuses as the whole record), and ``ea-gym phm --measurements`` end to end."""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ea_gym.cli import main
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.database import classes_of
+from ea_gym.measurements import MeasurementError, Measurements, read_measurements, write_measurements
+from ea_gym.models import spring_mass_damper
+from ea_gym.phm import DetectorConfig, PHMChain, PHMConfig, calibrate_thresholds, run_signals
+from ea_gym.phm.harness import StreamingChain, fitted_initial_state, nominal_reference, run_measurements, scenario_measurements
+from ea_gym.plant import run_model
+from ea_gym.scenario import load_scenario
+
+MODEL = spring_mass_damper()
+NOISE = 0.01
+# k falls from 100 N/m at 5 s to 88 N/m at 60 s: it crosses its lower safe limit 85 N/m at
+# 5 + 55 x 15 / 12 = 73.75 s, the End of Life a perfect prognosis predicts throughout
+FAULT_END_OF_LIFE = 73.75
+SCENARIO = {
+    "system": "spring_mass_damper",
+    "load": {"kind": "sines", "offset": 10.0,
+             "sines": [{"amplitude": 5.0, "frequency": 0.3}, {"amplitude": 2.0, "frequency": 1.1, "phase": 0.5}]},
+    "duration": 60.0,
+    "fault": {"parameter": "k", "profile": [[0, 100], [5, 100], [60, 88]]},
+    "sensors": {"noise": NOISE, "seed": 4},
+}
+HEALTHY = {key: value for key, value in SCENARIO.items() if key != "fault"}
+
+
+def _write_scenario(directory: Path, scenario: dict, name: str) -> Path:
+    path = directory / f"{name}.json"
+    path.write_text(json.dumps(scenario))
+    return path
+
+
+# ------------------------------------------------------------------------------------------------
+# the CSV format
+# ------------------------------------------------------------------------------------------------
+
+
+def test_written_measurements_read_back_exactly(tmp_path):
+    rng = np.random.default_rng(0)
+    t = 12.5 + 0.01 * np.arange(50)
+    written = Measurements(t=t, load=rng.normal(10, 3, 50), signals=rng.normal(0, 1e-3, (50, 2)))
+    read = read_measurements(write_measurements(tmp_path / "m.csv", MODEL, written), MODEL)
+    assert (tmp_path / "m.csv").read_text().splitlines()[0] == "t,F,m,k"
+    for field in ("t", "load", "signals"):
+        np.testing.assert_array_equal(getattr(read, field), getattr(written, field))
+    assert read.sample_rate == 100.0 and read.duration == pytest.approx(0.49)
+
+
+def test_columns_may_come_in_any_order(tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_text("k, m ,F,t\n3,2,1,0\n6,5,4,0.5\n")
+    read = read_measurements(path, MODEL)
+    np.testing.assert_array_equal(read.t, [0.0, 0.5])
+    np.testing.assert_array_equal(read.load, [1.0, 4.0])
+    np.testing.assert_array_equal(read.signals, [[2.0, 3.0], [5.0, 6.0]])  # state_names order: m, k
+
+
+GOOD = ["t,F,m,k", *(f"{i / 100:g},10,{i / 10:g},{i / 5:g}" for i in range(8))]  # 8 samples at 100 Hz
+
+
+def _with(line: int, text: str | None) -> str:
+    """GOOD with its ``line`` (1: the header) replaced by ``text``, or removed when None."""
+    lines = list(GOOD)
+    if text is None:
+        del lines[line - 1]
+    else:
+        lines[line - 1] = text
+    return "\n".join(lines) + "\n"
+
+
+BAD_CSV = [
+    ("missing column", _with(1, "t,F,m,x").replace(",x", ""), "missing column 'k'"),
+    ("extra column", "t,F,m,k,T\n0,10,0,0,20\n0.01,10,0,0,20\n", "unexpected column 'T'"),
+    ("repeated column", "t,F,m,k,k\n0,10,0,0,0\n", "column 'k' appears twice"),
+    ("t not increasing", _with(4, "0.01,10,0.2,0.4"), "line 4: t = 0.01 s does not increase"),
+    ("t with a gap", _with(3, None), "line 3: t = 0.02 s is 0.02 s after the line before, not the sampling period 0.01 s"),
+    ("NaN cell", _with(3, "0.01,10,nan,0.2"), "line 3, column 'm': 'nan' where a number is expected"),
+    ("empty cell", _with(4, "0.02,10,0.2,"), "line 4, column 'k': an empty cell"),
+    ("text cell", _with(5, "0.03,ten,0.3,0.6"), "line 5, column 'F': 'ten'"),
+    ("overflow", _with(5, "0.03,1e999,0.3,0.6"), "line 5, column 'F': '1e999' overflows a float"),
+    ("short row", _with(3, "0.01,10,0.1"), "line 3 has 3 cells, the header 4"),
+    ("blank line", _with(3, ""), "line 3 is empty"),
+    ("empty file", "", "empty file"),
+    ("header only", "t,F,m,k\n", "0 sample(s); a record needs at least 2"),
+]
+
+
+@pytest.mark.parametrize(("text", "fragment"), [case[1:] for case in BAD_CSV], ids=[case[0] for case in BAD_CSV])
+def test_bad_csv_names_the_culprit(tmp_path, text, fragment):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(MeasurementError) as error:
+        read_measurements(path, MODEL)
+    assert fragment in str(error.value)
+    assert str(path) in str(error.value)
+
+
+def test_only_regular_files_within_the_limits_are_read(tmp_path):
+    with pytest.raises(MeasurementError, match="must be a regular file"):
+        read_measurements(tmp_path, MODEL)
+    with pytest.raises(MeasurementError, match="cannot read"):
+        read_measurements(tmp_path / "absent.csv", MODEL)
+    path = tmp_path / "m.csv"
+    path.write_text("\n".join(GOOD) + "\n")
+    size = path.stat().st_size
+    with pytest.raises(MeasurementError, match=f"{size} bytes, more than the {size - 1} read"):
+        read_measurements(path, MODEL, max_bytes=size - 1)
+    with pytest.raises(MeasurementError, match="more than 7 samples"):
+        read_measurements(path, MODEL, max_rows=7)
+    assert len(read_measurements(path, MODEL, max_bytes=size, max_rows=8).t) == 8
+
+
+# ------------------------------------------------------------------------------------------------
+# the streaming chain
+# ------------------------------------------------------------------------------------------------
+
+
+class _Uniform(FaultClassifier):
+    """A stand-in network without an opinion (no training in tests): isolation rests on the estimator."""
+
+    def predict_proba(self, features):
+        return np.full((len(features), 4), 0.25)
+
+
+@pytest.fixture(scope="module")
+def chain():
+    config = PHMConfig(noise=NOISE, detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
+    thresholds = calibrate_thresholds(MODEL, config, np.random.default_rng(2))
+    return PHMChain(MODEL, _Uniform(classes_of(MODEL), "strong", 1), thresholds, config)
+
+
+@pytest.fixture(scope="module")
+def record():
+    short = dict(SCENARIO, duration=30.0, fault={"parameter": "k", "profile": [[0, 100], [5, 100], [30, 92]]})
+    return scenario_measurements(load_scenario(short), np.random.default_rng(1))
+
+
+def _same(a, b) -> bool:
+    return all(
+        np.array_equal(getattr(a, name), getattr(b, name), equal_nan=True)
+        for name in ("t", "ea", "ea_reference", "statistic", "alarm", "diagnosis", "isolated", "estimates", "eol", "eol_low", "eol_high")
+    )
+
+
+def test_streaming_in_random_chunks_gives_the_statuses_of_one_chunk(chain, record):
+    whole = StreamingChain(chain)
+    statuses = whole.feed(record.t, record.load, record.signals) + whole.finish()
+    assert len(statuses) == 30 and statuses[-1].alarm[0]  # the fault is seen: the comparison is not vacuous
+    rng = np.random.default_rng(7)
+    stream, chunked, start = StreamingChain(chain), [], 0
+    while start < len(record.t):
+        size = int(rng.integers(1, 250))
+        chunked += stream.feed(record.t[start : start + size], record.load[start : start + size], record.signals[start : start + size])
+        start += size
+    chunked += stream.finish()
+    assert len(chunked) == len(statuses) == len(stream.statuses)
+    assert all(_same(a, b) for a, b in zip(statuses, chunked))
+
+
+def test_streaming_equals_run_signals_on_the_whole_record(chain, record):
+    """The reference implementation: ``run_signals`` with the nominal model from the first sample and the
+    load's central-difference derivative over the whole record."""
+    measured = record.signals.T[None]
+    load = record.load[None]
+    load_rate = np.gradient(load, chain.h, axis=-1)
+    expected = run_signals(chain, measured, load, load_rate, nominal_reference(chain, measured, load, load_rate))
+    streamed = run_measurements(chain, record).statuses
+    assert len(streamed) == len(expected) == 30
+    assert all(_same(a, b) for a, b in zip(expected, streamed))
+
+
+def test_stream_refuses_a_gap_between_chunks_and_bad_shapes(chain, record):
+    stream = StreamingChain(chain)
+    stream.feed(record.t[:10], record.load[:10], record.signals[:10])
+    with pytest.raises(ValueError, match=r"sample 10: t = 0.11 s is 0.02 s after the one before; the chain samples every 0.01 s"):
+        stream.feed(record.t[11:20], record.load[11:20], record.signals[11:20])
+    with pytest.raises(ValueError, match=r"signals \(T, 2\)"):
+        stream.feed(record.t[10:20], record.load[10:20], record.signals[10:20, :1])
+    signals = record.signals[10:20].copy()
+    signals[3, 1] = np.nan
+    with pytest.raises(ValueError, match="sample 13: t, load and signals must be finite"):
+        stream.feed(record.t[10:20], record.load[10:20], signals)
+    assert stream.received == 10  # nothing of a refused chunk is kept
+
+
+def test_the_reference_starts_from_the_state_fitted_to_the_first_step_not_from_one_noisy_sample(chain):
+    """A record cut from a running healthy machine (20 s in), 1 % noise: the fitted energy variables are
+    within 0.1 % of each one's range of the true ones, less than half the first sample's error."""
+    scenario = load_scenario(HEALTHY)
+    plant = run_model(MODEL, scenario.times(), scenario.make_load(), None, scenario.initial_state_vector())
+    record = scenario_measurements(scenario, np.random.default_rng(5))
+    part = slice(2000, 2000 + chain.step_samples + 1)
+    load = record.load[None, part]
+    fitted = fitted_initial_state(chain, record.signals[part].T[None], load, np.gradient(load, chain.h, axis=-1))[0]
+    true = plant.states[2000]
+    scale = np.ptp(plant.states, axis=0)
+    fitted_error = np.abs(fitted - true) / scale
+    sample = record.signals[2000] / chain.monitor.measurement_gain(MODEL.parameter_vector())
+    sample_error = np.abs(sample - true) / scale  # 2.0e-3 and 0.8e-3 of the ranges here
+    assert np.all(fitted_error < 1e-3) and fitted_error.max() < 0.5 * sample_error.max()  # 0.45e-3, 0.35e-3
+
+
+def test_a_record_shorter_than_a_detection_window_is_refused(chain, record):
+    with pytest.raises(ValueError, match=r"lasts 4.99 s; the chain needs at least 5 s \(one detection window\), i.e. 501 samples at 100 Hz"):
+        run_measurements(chain, Measurements(record.t[:500], record.load[:500], record.signals[:500]))
+
+
+# ------------------------------------------------------------------------------------------------
+# ea-gym simulate --csv and ea-gym phm --measurements
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def recorded_runs(tmp_path_factory):
+    """The fault and the fault-free scenarios' CSVs written by the CLI, each run through ``phm --measurements``."""
+    directory = tmp_path_factory.mktemp("recorded")
+    outputs = {}
+    for name, scenario in (("fault", SCENARIO), ("healthy", HEALTHY)):
+        csv = directory / f"{name}.csv"
+        assert main(["simulate", str(_write_scenario(directory, scenario, name)), "--csv", str(csv)]) == 0
+        out = directory / f"{name}_out"
+        args = ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--noise", str(NOISE), "--out", str(out)]
+        assert main(args) == 0
+        outputs[name] = (csv, out, json.loads((out / "results.json").read_text()))
+    return outputs
+
+
+def test_simulate_csv_is_the_scenarios_sensor_record(recorded_runs):
+    csv, _, _ = recorded_runs["fault"]
+    read = read_measurements(csv, MODEL)
+    scenario = load_scenario(SCENARIO)
+    expected = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
+    np.testing.assert_array_equal(read.signals, expected.signals)
+    np.testing.assert_array_equal(read.t, np.arange(6001) / 100.0)
+    # 1 % noise: the velocity's deviation from its clean value over the first step is about 1 % of its RMS
+    clean = scenario_measurements(load_scenario(dict(SCENARIO, sensors={"noise": 0.0})), np.random.default_rng(0))
+    deviation = read.signals[:100, 0] - clean.signals[:100, 0]
+    assert 0.005 < deviation.std() / np.sqrt(np.mean(clean.signals[:100, 0] ** 2)) < 0.015
+
+
+def test_recorded_fault_is_detected_isolated_tracked_and_its_end_of_life_predicted(recorded_runs):
+    csv, out, results = recorded_runs["fault"]
+    assert results["isolated_parameter"] == "k"
+    assert 5.0 < results["detection_time"] < 15.0
+    # tracked: the estimate follows k's ramp 100 -> 88 N/m from 5 s (truth known from the scenario)
+    t, value = np.array(results["estimate"]["t"]), np.array(results["estimate"]["value"])
+    late = t >= 20.0
+    truth = 100.0 - 12.0 * (t[late] - 5.0) / 55.0
+    assert np.max(np.abs(value[late] - truth)) < 1.0  # N/m, 1 % of nominal
+    # End of Life: every prediction of the last 20 s within 5 % of the true 73.75 s
+    predictions = [p for p in results["eol_predictions"] if p["t"] >= 40.0]
+    assert len(predictions) == 21 and all(p["parameter"] == "k" and p["limit"] == "lower" for p in predictions)
+    errors = np.array([p["eol"] for p in predictions]) - FAULT_END_OF_LIFE
+    assert np.max(np.abs(errors)) < 0.05 * FAULT_END_OF_LIFE
+    # no truth: no metrics, no estimate-error figure, nothing the report claims to know of it
+    assert "metrics" not in results and results["run"]["measurements"] == str(csv) and "scenario" not in results["run"]
+    assert sorted(p.name for p in out.iterdir()) == ["estimate.png", "report.md", "results.json", "rul.png", "signals.png", "time_frequency.png"]
+    report = (out / "report.md").read_text()
+    assert "truth unknown" in report and "true" not in report.replace("truth unknown", "")
+
+
+def test_recorded_healthy_machine_raises_no_alarm(recorded_runs):
+    _, _, results = recorded_runs["healthy"]
+    assert results["detection_time"] is None and results["isolated_parameter"] is None
+    assert results["eol_predictions"] == []
+
+
+CLI_ERRORS = [
+    ("extra column", "t,F,m,k,x\n0,1,2,3,4\n", "unexpected column 'x'"),
+    ("NaN", _with(4, "0.02,10,NaN,0.4"), "line 4, column 'm': 'NaN'"),
+    ("gap", _with(4, None), "line 4: t = 0.03 s"),
+    ("too short", "\n".join(GOOD) + "\n", "the record lasts 0.07 s; the chain needs at least 5 s"),
+]
+
+
+@pytest.mark.parametrize(("text", "fragment"), [case[1:] for case in CLI_ERRORS], ids=[case[0] for case in CLI_ERRORS])
+def test_phm_measurements_errors_exit_2_in_one_line_writing_nothing(tmp_path, capsys, text, fragment):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    out = tmp_path / "out"
+    assert main(["phm", "--system", "spring_mass_damper", "--measurements", str(path), "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("ea-gym phm: error: ") and fragment in error and error.count("\n") == 1
+    assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad.csv"]
+
+
+@pytest.mark.parametrize(
+    ("args", "fragment"),
+    [
+        (["--measurements", "x.csv"], "--measurements needs --system MODEL"),
+        ([], "give a SCENARIO to simulate or --measurements DATA.csv"),
+        (["s.json", "--measurements", "x.csv", "--system", "spring_mass_damper"], "one of them"),
+        (["--system", "nonsense", "--measurements", "x.csv"], "unknown system 'nonsense'"),
+    ],
+)
+def test_phm_options_that_do_not_go_together(tmp_path, capsys, args, fragment):
+    assert main(["phm", *args, "--out", str(tmp_path / "out")]) == 2
+    assert fragment in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_phm_help_says_how_to_choose_the_noise(capsys):
+    with pytest.raises(SystemExit):
+        main(["phm", "--help"])
+    text = " ".join(capsys.readouterr().out.split())
+    for phrase in ("--measurements", "--system", "--noise", "fault-free stretch", "Too low raises alarms"):
+        assert phrase in text
