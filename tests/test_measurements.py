@@ -314,3 +314,61 @@ def test_phm_help_says_how_to_choose_the_noise(capsys):
     text = " ".join(capsys.readouterr().out.split())
     for phrase in ("--measurements", "--system", "--noise", "fault-free stretch", "Too low raises alarms"):
         assert phrase in text
+
+
+# ------------------------------------------------------------------------------------------------
+# issue 19's acceptance: a model file's machine, a fault in its coupling spring k2
+# ------------------------------------------------------------------------------------------------
+
+TWO_MASS = Path(__file__).resolve().parents[1] / "experiments" / "models" / "two_mass_chain.yaml"
+# k2 falls from 50 N/m at 5 s to 40 N/m at 60 s: it crosses its lower safe limit 42 N/m at 5 + 55 x 8 / 10 = 49 s
+K2_END_OF_LIFE = 49.0
+
+
+@pytest.fixture(scope="module")
+def two_mass_runs(tmp_path_factory):
+    """The two-mass chain's fault and fault-free records through ``phm --measurements``, with a small isolation
+    network trained here (a few seconds: 4 intervals per parameter, 2 loads; the chain's fusion with the
+    estimator's evidence does the rest)."""
+    from ea_gym.diagnosis.database import DatabaseConfig
+    from ea_gym.diagnosis.training import TrainingConfig, train_isolation
+    from ea_gym.model_files import load_system
+
+    directory = tmp_path_factory.mktemp("two_mass")
+    database = DatabaseConfig(intervals=4, noise_levels=(NOISE,), n_loads=2, fault_free_runs=2)
+    training = train_isolation(load_system(str(TWO_MASS)), np.random.default_rng(0), database, TrainingConfig(epochs=100), variants=("strong",))
+    network = training.classifiers["strong"].save(directory / "network.pt")
+    load = {"kind": "sines", "offset": 10.0, "sines": [{"amplitude": 4.0, "frequency": 0.25}, {"amplitude": 2.0, "frequency": 0.55},
+                                                       {"amplitude": 1.0, "frequency": 1.1}]}
+    scenarios = {
+        "fault": {"system": str(TWO_MASS), "load": load, "duration": 60.0, "sensors": {"noise": NOISE, "seed": 21},
+                  "fault": {"parameter": "k2", "profile": [[0, 50], [5, 50], [60, 40]]}},
+        "healthy": {"system": str(TWO_MASS), "load": load, "duration": 60.0, "sensors": {"noise": NOISE, "seed": 22}},
+    }
+    results = {}
+    for name, scenario in scenarios.items():
+        csv = directory / f"{name}.csv"
+        assert main(["simulate", str(_write_scenario(directory, scenario, name)), "--csv", str(csv)]) == 0
+        out = directory / f"{name}_out"
+        assert main(["phm", "--system", str(TWO_MASS), "--measurements", str(csv), "--noise", str(NOISE), "--classifier", str(network),
+                     "--out", str(out)]) == 0
+        results[name] = json.loads((out / "results.json").read_text())
+    return results
+
+
+def test_two_mass_chain_coupling_spring_fault_is_isolated_tracked_and_its_end_of_life_predicted(two_mass_runs):
+    results = two_mass_runs["fault"]
+    assert results["isolated_parameter"] == "k2" and results["class_probabilities"]["k2"] > 0.9
+    t, value = np.array(results["estimate"]["t"]), np.array(results["estimate"]["value"])
+    late = t >= 20.0
+    truth = 50.0 - 10.0 * (t[late] - 5.0) / 55.0
+    assert late.sum() > 30 and np.max(np.abs(value[late] - truth)) < 1.0  # N/m, 2 % of nominal
+    predictions = [p for p in results["eol_predictions"] if 25.0 <= p["t"] < 45.0]
+    assert len(predictions) == 20 and all(p["parameter"] == "k2" and p["limit"] == "lower" for p in predictions)
+    errors = np.array([p["eol"] for p in predictions]) - K2_END_OF_LIFE
+    assert np.max(np.abs(errors)) < 0.05 * K2_END_OF_LIFE
+
+
+def test_two_mass_chain_healthy_record_raises_no_alarm(two_mass_runs):
+    results = two_mass_runs["healthy"]
+    assert results["detection_time"] is None and results["isolated_parameter"] is None and results["eol_predictions"] == []

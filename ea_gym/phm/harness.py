@@ -67,7 +67,7 @@ def fitted_initial_state(chain: PHMChain, measured: np.ndarray, load: np.ndarray
     space, h = chain.model.state_space, chain.h
     nominal = np.repeat(chain.model.parameter_vector()[None], max(n, nx), 0)
     gain = chain.monitor.measurement_gain(nominal)
-    forced, _ = simulate_measured(space, h, load[..., None], load_rate[..., None], nominal[:n], np.zeros((n, nx)), gain[:n])
+    forced, _ = simulate_measured(space, h, *chain.model.source_inputs(load, load_rate), nominal[:n], np.zeros((n, nx)), gain[:n])
     rest = np.zeros((nx, samples, space.n_inputs))
     free, _ = simulate_measured(space, h, rest, rest, nominal[:nx], np.eye(nx), gain[:nx])  # (state, signal, sample)
     states = np.empty((n, nx))
@@ -86,7 +86,7 @@ def nominal_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, l
     first = slice(0, chain.step_samples + 1)
     start = fitted_initial_state(chain, measured[..., first], load[:, first], load_rate[:, first])
     signals, _ = simulate_measured(
-        chain.model.state_space, chain.h, load[..., None], load_rate[..., None], nominal, start, chain.monitor.measurement_gain(nominal)
+        chain.model.state_space, chain.h, *chain.model.source_inputs(load, load_rate), nominal, start, chain.monitor.measurement_gain(nominal)
     )
     return signals
 
@@ -273,7 +273,7 @@ class StreamingChain:
         if self._reference_state is None:
             self._reference_state = fitted_initial_state(chain, measured, load[None], load_rate[None])
         reference, self._reference_state = simulate_measured(
-            chain.model.state_space, chain.h, load[None, :, None], load_rate[None, :, None], chain.model.parameter_vector()[None],
+            chain.model.state_space, chain.h, *chain.model.source_inputs(load[None], load_rate[None]), chain.model.parameter_vector()[None],
             self._reference_state, chain.monitor.measurement_gain(chain.model.parameter_vector()[None]),
         )
         status = chain.update(measured, reference, load[None], load_rate[None])
