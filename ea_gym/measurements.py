@@ -15,6 +15,7 @@ read whole. Every error names the file, the line (the header is line 1) and the 
 from __future__ import annotations
 
 import csv
+import io
 import os
 import re
 import stat
@@ -96,14 +97,17 @@ def read_measurements(
         raise MeasurementError(f"{path}: measurements must be a regular file")
     if info.st_size > max_bytes:
         raise MeasurementError(f"{path}: {info.st_size} bytes, more than the {max_bytes} read; split the record")
-    with path.open(newline="", encoding="utf-8", errors="replace") as file:
-        rows = csv.reader(file)
-        header = next(rows, None)
-        if header is None:
-            raise MeasurementError(f"{path}: empty file; expected a header row with columns {', '.join(measurement_columns(model))}")
-        names = [name.strip() for name in header]
-        order = _column_order(path, names, model)
-        values = _numbers(path, enumerate(rows, start=2), names, max_rows)
+    with path.open("rb") as file:
+        raw = file.read(max_bytes + 1)  # the file may have grown since
+    if len(raw) > max_bytes:
+        raise MeasurementError(f"{path}: more than the {max_bytes} bytes read; split the record")
+    rows = csv.reader(io.StringIO(raw.decode("utf-8", errors="replace"), newline=""))
+    header = next(rows, None)
+    if header is None:
+        raise MeasurementError(f"{path}: empty file; expected a header row with columns {', '.join(measurement_columns(model))}")
+    names = [name.strip() for name in header]
+    order = _column_order(path, names, model)
+    values = _numbers(path, enumerate(rows, start=2), names, max_rows)
     if len(values) < 2:
         raise MeasurementError(f"{path}: {len(values)} sample(s); a record needs at least 2")
     table = np.array(values)[:, order]
