@@ -1,4 +1,5 @@
-"""The ``train`` and ``benchmark`` subcommands of ``ea-gym``, added through the ``ea_gym.commands`` entry points.
+"""The ``train``, ``benchmark`` and ``convert-agent`` subcommands of ``ea-gym``, added through the
+``ea_gym.commands`` entry points.
 
 The library (``ea_gym``) never imports the agents; it finds these through the entry-point group
 (pyproject.toml). torch and stable-baselines3 are imported inside the commands only, so ``ea-gym --help``
@@ -10,12 +11,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, TRUST_PICKLE, refuse_pickle
 from ea_gym.cli_args import Subcommands, non_negative_int, positive_int
 
-__all__ = ["add_train", "add_benchmark", "default_agent"]
+__all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent"]
+
+#: ``--trust-pickle``'s help, the same on every command that loads an agent
+TRUST_PICKLE_HELP = (
+    f"also load stable-baselines3's own files ({SB3_MODEL_FILE}, {SB3_NORMALIZATION_FILE}, checkpoint .zip): they are "
+    "unpickled, which runs any code they hold, so only for files you trust; without it they are refused"
+)
 
 
 def _train(args: argparse.Namespace) -> int:
+    if args.resume is not None:
+        refuse_pickle(Path(args.resume), args.trust_pickle)  # before torch is imported
     from agents.training import TrainingRun, train
 
     run = TrainingRun(
@@ -24,7 +34,8 @@ def _train(args: argparse.Namespace) -> int:
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
         dagger_rounds=args.dagger_rounds,
     )
-    summary = train(run, Path(args.out), resume=None if args.resume is None else Path(args.resume), progress_bar=not args.no_progress)
+    resume = None if args.resume is None else Path(args.resume)
+    summary = train(run, Path(args.out), resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
     print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
     return 0
 
@@ -33,11 +44,21 @@ def _benchmark(args: argparse.Namespace) -> int:
     from agents.benchmark.run import run_benchmark
 
     ppo = None if args.no_ppo else (Path(args.ppo) if args.ppo is not None else default_agent())
-    result = run_benchmark(args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress)
+    result = run_benchmark(args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress,
+                           trust_pickle=args.trust_pickle)
     rows = result["policies"]
     ranking = ", ".join(f"{name} {rows[name]['mean_cost']:.0f}" for name in result["ranking"])
     skipped = "".join(f"; skipped {name}: {note}" for name, note in result["skipped"].items())
     print(f"mean episode cost: {ranking}{skipped}; wrote {args.out}/benchmark.md")
+    return 0
+
+
+def _convert_agent(args: argparse.Namespace) -> int:
+    refuse_pickle(Path(args.source), args.trust_pickle)  # before torch is imported
+    from agents.training import convert_agent
+
+    convert_agent(Path(args.source), Path(args.destination), trust_pickle=args.trust_pickle)
+    print(f"wrote {args.destination}/{AGENT_FILE} and {POLICY_FILE} from {args.source}")
     return 0
 
 
@@ -54,9 +75,12 @@ def add_train(commands: Subcommands) -> None:
         help="train a maintenance policy with stable-baselines3 on the batched environment",
         description=(
             "Train PPO, A2C or DQN on ea_gym/SpringMassDamper-v0 (continue_after_failure=True) with normalised "
-            "observations and rewards. Writes DIR/model.zip, DIR/vecnormalize.pkl, DIR/training.json, the best "
-            "model on held-out validation seeds (DIR/best), checkpoints (DIR/checkpoints), evaluations and, when "
-            "tensorboard is installed, TensorBoard logs (DIR/tensorboard)."
+            "observations and rewards. DIR becomes an agent directory: DIR/agent.json (algorithm, architecture, spaces, "
+            "normalisation statistics as numbers), DIR/policy.safetensors and DIR/optimizer.safetensors (weights and "
+            "optimizer state; loading them runs no code from the files), the checkpoint with the best validation reward; "
+            "also DIR/training.json, the latest best policy on held-out validation seeds (DIR/best), checkpoints "
+            "(DIR/checkpoints/ALGO_STEPS_steps, agent directories too), evaluations and, when tensorboard is installed, "
+            "TensorBoard logs (DIR/tensorboard)."
         ),
     )
     train.add_argument("--algo", choices=["ppo", "dqn", "a2c"], default="ppo", help="algorithm (default ppo)")
@@ -70,7 +94,14 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--eval-every", type=positive_int, default=20_000, help="steps between evaluations (default 20000)")
     train.add_argument("--checkpoint-every", type=positive_int, default=50_000, help="steps between checkpoints (default 50000)")
     train.add_argument("--eval-episodes", type=positive_int, default=32, help="validation episodes per evaluation (default 32)")
-    train.add_argument("--resume", metavar="CHECKPOINT", default=None, help="continue from a checkpoint .zip (or a model.zip)")
+    train.add_argument(
+        "--resume", metavar="AGENT", default=None,
+        help="continue from an agent directory (an earlier --out or one of its checkpoints) with the same --algo, --obs-mode "
+             "and environment: weights, optimizer state, normalisation statistics, hyperparameters and step count are "
+             "restored; PPO's rollout and DQN's replay buffer start afresh. With --trust-pickle also a stable-baselines3 "
+             "checkpoint .zip (its vecnormalize .pkl beside it)",
+    )
+    train.add_argument(TRUST_PICKLE, action="store_true", help=TRUST_PICKLE_HELP)
     teachers = ["rul_threshold", "corrective_band", "corrective_band_quiet", "oracle", "oracle_corrective", "periodic"]
     train.add_argument("--teacher", choices=teachers, default=None,
                        help="clone this rule policy into the actor-critic before learning (PPO, A2C; default none)")
@@ -108,11 +139,30 @@ def add_benchmark(commands: Subcommands) -> None:
     ppo_choice = benchmark.add_mutually_exclusive_group()
     ppo_choice.add_argument(
         "--ppo", metavar="DIR", default=None,
-        help="trained agent directory (model.zip, vecnormalize.pkl, training.json from ea-gym train); default "
-        "agents/data/ppo_phm of the installed package when it exists; a directory without a model is skipped with a note",
+        help="trained agent directory (agent.json, policy.safetensors, training.json from ea-gym train); default "
+        "agents/data/ppo_phm of the installed package when it exists; a directory without an agent is skipped with a note",
     )
     ppo_choice.add_argument("--no-ppo", action="store_true", help="evaluate no PPO agent (noted as skipped)")
     benchmark.add_argument("--tune-episodes", type=positive_int, default=300, metavar="K",
                            help="tuning episodes per grid value, seeds 0..K-1 (default 300)")
     benchmark.add_argument("--no-progress", action="store_true", help="no progress bars")
+    benchmark.add_argument(TRUST_PICKLE, action="store_true", help=TRUST_PICKLE_HELP)
     benchmark.set_defaults(run=_benchmark)
+
+
+def add_convert_agent(commands: Subcommands) -> None:
+    """``ea-gym convert-agent``: stable-baselines3's files of an agent as an agent directory without pickle."""
+    convert = commands.add_parser(
+        "convert-agent",
+        help="write an agent saved as stable-baselines3's files (model.zip, vecnormalize.pkl) as an agent directory without pickle",
+        description=(
+            "Read SRC (model.zip, vecnormalize.pkl and training.json of an earlier ea-gym train) and write DST/agent.json, "
+            "DST/policy.safetensors, DST/optimizer.safetensors and DST/training.json, which ea-gym train --resume and "
+            "ea-gym benchmark --ppo load without unpickling anything. Reading SRC unpickles it, which runs any code it "
+            f"holds: {TRUST_PICKLE} is required, for files you trust."
+        ),
+    )
+    convert.add_argument("source", metavar="SRC", help="directory holding model.zip, vecnormalize.pkl and training.json")
+    convert.add_argument("destination", metavar="DST", help="agent directory to write (created)")
+    convert.add_argument(TRUST_PICKLE, action="store_true", help="unpickle SRC (required: the files may run code)")
+    convert.set_defaults(run=_convert_agent)

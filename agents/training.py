@@ -3,8 +3,11 @@
 `train` builds the batched `MaintenanceVecEnv` (or a `SubprocVecEnv` of single environments, for
 comparison), normalises observations and rewards with `VecNormalize`, and trains PPO, A2C or DQN with a
 progress bar, periodic evaluation on held-out seeds, checkpoints and, when tensorboard is installed,
-TensorBoard logs. Everything needed to reload the policy (the model and the normalisation statistics)
-lands in the output directory.
+TensorBoard logs. The selected policy, its normalisation statistics and its optimizer's state land in
+the output directory as an agent directory of ``agents.agent_files`` (JSON and safetensors: loading it
+runs no code from the files). stable-baselines3's own files (``model.zip``, ``vecnormalize.pkl``) are
+unpickled on loading; they are read only with ``trust_pickle=True`` (``--trust-pickle``), to resume from
+them or to convert them (``convert_agent``).
 """
 
 from __future__ import annotations
@@ -13,30 +16,50 @@ import importlib.util
 import json
 import shutil
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
-from stable_baselines3 import A2C, DQN, PPO
-from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import CallbackList, CheckpointCallback, EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
+from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
 
 import ea_gym  # noqa: F401 - registers the environments
-from agents.conventions import MODEL_FILE, NORMALIZATION_FILE, SUMMARY_FILE, TRAINING_SEED, VALIDATION_SEED
+from agents.agent_files import (
+    ALGORITHMS,
+    AgentDescription,
+    Normalization,
+    TrainedEnvironment,
+    build_policy,
+    load_optimizer,
+    load_sb3,
+    load_weights,
+    read_agent,
+    save_agent,
+)
+from agents.conventions import (
+    AGENT_FILE,
+    OPTIMIZER_FILE,
+    POLICY_FILE,
+    SB3_MODEL_FILE,
+    SUMMARY_FILE,
+    TRAINING_SEED,
+    VALIDATION_SEED,
+    pickled,
+    refuse_pickle,
+)
 from agents.imitation import clone
 from agents.observations import LearnerView, normalised_keys
 from ea_gym.env import ENV_ID
 from ea_gym.env.sb3 import MaintenanceVecEnv
-from ea_gym.files import write_json
+from ea_gym.files import write_atomic, write_json
 from ea_gym.threads import single_threaded_torch
-
-ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "a2c": A2C, "dqn": DQN}
 
 
 @dataclass(frozen=True)
@@ -128,11 +151,34 @@ def default_hyperparameters(algo: str, n_envs: int, cloned: bool = False) -> dic
             "exploration_fraction": 0.2, "target_update_interval": 2_000, "train_freq": 4}
 
 
-def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar: bool = True) -> dict[str, Any]:
+def hyperparameters(run: TrainingRun) -> dict[str, Any]:
+    """The algorithm's keyword arguments for ``run``: ``default_hyperparameters``, updated by the run's own."""
+    return {**default_hyperparameters(run.algo, run.n_envs, cloned=run.teacher is not None), **run.hyperparameters}
+
+
+def trained_environment(run: TrainingRun) -> TrainedEnvironment:
+    """The environment ``make_vec_env`` makes for ``run``, as an agent directory records it."""
+    return TrainedEnvironment(ENV_ID, run.obs_mode, {"continue_after_failure": True, **run.env_kwargs}, run.activity)
+
+
+def train(
+    run: TrainingRun, out: Path, resume: Path | None = None, progress_bar: bool = True, trust_pickle: bool = False,
+) -> dict[str, Any]:
     """Train, evaluate and checkpoint; returns the summary written to ``out/training.json``.
 
+    Writes ``out`` as an agent directory (``agents.agent_files``: the checkpoint with the best validation
+    reward), its checkpoints ``out/checkpoints/<algo>_<steps>_steps`` and the latest best evaluated
+    policy ``out/best`` (agent directories too), the evaluations and the summary.
+
     Args:
-        resume: a checkpoint (``.zip``) to continue from; its ``vecnormalize`` file is picked up beside it.
+        resume: an agent directory to continue from (an earlier ``out`` or one of its checkpoints): the
+            policy's weights, the optimizer's state, the normalisation statistics, the hyperparameters
+            and the step count are restored; the algorithm's other state (PPO's rollout, DQN's replay
+            buffer) starts afresh, as it does from stable-baselines3's files. With ``trust_pickle``, also
+            a stable-baselines3 checkpoint ``.zip`` (its ``vecnormalize`` file beside it) or a directory
+            holding ``model.zip`` and ``vecnormalize.pkl``.
+        trust_pickle: let stable-baselines3 unpickle ``resume``'s files, which runs any code they hold;
+            without it they are refused (``agents.conventions.UntrustedFileError``) before any work.
     """
     if run.algo not in ALGORITHMS:
         raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {run.algo!r}")
@@ -140,22 +186,40 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
         raise ValueError(f"timesteps and n_envs must be positive, got {run.timesteps} and {run.n_envs}")
     if run.dagger_rounds and run.teacher is None:
         raise ValueError(f"dagger_rounds ({run.dagger_rounds}) needs a teacher to label the learner's steps")
+    stored = None
+    if resume is not None:
+        resume = Path(resume)
+        if not refuse_pickle(resume, trust_pickle):
+            stored = read_agent(resume)
+            _check_resumable(run, stored)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     algorithm = ALGORITHMS[run.algo]
+    settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
+    tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
     env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs)
     # validation episodes run 8 at a time on the batched env
     evaluation_env = make_vec_env(run, min(run.eval_episodes, 8), VALIDATION_SEED, kind="batched")
-    if resume is not None:
-        env = VecNormalize.load(str(_normalization_beside(resume)), env)
-        model = algorithm.load(str(resume), env=env, seed=run.seed)
+    if resume is not None and stored is None:  # stable-baselines3's files, trusted
+        model, env = load_sb3(resume / SB3_MODEL_FILE if resume.is_dir() else resume, run.algo, env, seed=run.seed)
     else:
         env = normalize(env)
-        hyperparameters = {**default_hyperparameters(run.algo, run.n_envs, cloned=run.teacher is not None), **run.hyperparameters}
-        tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
-        model = algorithm("MultiInputPolicy", env, seed=run.seed, verbose=0, tensorboard_log=tensorboard, **hyperparameters)
+        policy: Any = "MultiInputPolicy" if stored is None else stored.policy_class
+        policy_kwargs = None if stored is None else stored.policy_kwargs
+        model = algorithm(policy, env, seed=run.seed, verbose=0, tensorboard_log=tensorboard, policy_kwargs=policy_kwargs, **settings)
+        if stored is not None and resume is not None:
+            stored.normalization.restore(env)
+            load_weights(model.policy, resume)
+            load_optimizer(model.policy.optimizer, stored, resume)
+            model.num_timesteps = stored.num_timesteps
     evaluation_env = normalize(evaluation_env, training=False)
     evaluation_env.obs_rms = env.obs_rms
+    environment = trained_environment(run)
+
+    def store(directory: Path) -> None:
+        save_agent(directory, model, env, environment, settings)
+
+    checkpoints = out / "checkpoints"
     started = time.perf_counter()
     cloning = None
     if run.teacher is not None and resume is None:
@@ -167,19 +231,18 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
             # the cloned policy is a candidate too: reinforcement learning must beat it to replace it
             rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
         cloning["validation_reward"] = float(np.mean(rewards))
-        _checkpoint(model, env, out, run.algo, 0)
+        store(checkpoints / f"{run.algo}_0_steps")
     steps_per_call = max(run.n_envs, 1)
     callbacks = CallbackList([
         EvalCallback(evaluation_env, n_eval_episodes=run.eval_episodes, eval_freq=max(run.eval_every // steps_per_call, 1),
-                     best_model_save_path=str(out / "best"), log_path=str(out / "evaluations"), deterministic=True),
-        CheckpointCallback(save_freq=max(run.checkpoint_every // steps_per_call, 1), save_path=str(out / "checkpoints"),
-                           name_prefix=run.algo, save_vecnormalize=True),
+                     callback_on_new_best=SaveAgent(lambda steps: store(out / "best")), log_path=str(out / "evaluations"), deterministic=True),
+        SaveAgent(lambda steps: store(checkpoints / f"{run.algo}_{steps}_steps"), every=max(run.checkpoint_every // steps_per_call, 1)),
     ])
     # the environments' numpy shares the process: a second torch thread fights its BLAS threads (20x slower here)
     with single_threaded_torch():
         model.learn(total_timesteps=run.timesteps, callback=callbacks, progress_bar=progress_bar, reset_num_timesteps=resume is None)
     wall = time.perf_counter() - started
-    _checkpoint(model, env, out, run.algo, model.num_timesteps)
+    store(checkpoints / f"{run.algo}_{model.num_timesteps}_steps")
     selected = _select(out, run, cloning, model.num_timesteps)
     summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
                "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected}
@@ -188,16 +251,33 @@ def train(run: TrainingRun, out: Path, resume: Path | None = None, progress_bar:
     return summary
 
 
-def _checkpoint(model: BaseAlgorithm, env: VecNormalize, out: Path, algo: str, steps: int) -> None:
-    """Save the model and its normalisation under CheckpointCallback's names."""
-    (out / "checkpoints").mkdir(parents=True, exist_ok=True)
-    model.save(str(out / "checkpoints" / f"{algo}_{steps}_steps.zip"))
-    env.save(str(out / "checkpoints" / f"{algo}_vecnormalize_{steps}_steps.pkl"))
+class SaveAgent(BaseCallback):
+    """Calls ``save(num_timesteps)`` every ``every`` calls (CheckpointCallback's schedule; every call as an
+    EvalCallback's ``callback_on_new_best``)."""
+
+    def __init__(self, save: Callable[[int], None], every: int = 1):
+        super().__init__()
+        self.save, self.every = save, every
+
+    def _on_step(self) -> bool:
+        if self.n_calls % self.every == 0:
+            self.save(self.num_timesteps)
+        return True
+
+
+def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:
+    """The run's algorithm and environment must be the agent's (else its spaces or its statistics would not fit)."""
+    environment = trained_environment(run)
+    for name, agent, here in (("algo", stored.algorithm, run.algo), ("obs_mode", stored.environment.obs_mode, environment.obs_mode),
+                              ("env_kwargs", stored.environment.env_kwargs, environment.env_kwargs),
+                              ("activity", stored.environment.activity, environment.activity), ("env id", stored.environment.env_id, ENV_ID)):
+        if agent != here:
+            raise ValueError(f"resume: the agent was trained with {name} {agent!r}, this run has {here!r}")
 
 
 def _select(out: Path, run: TrainingRun, cloning: dict[str, Any] | None, final_steps: int) -> dict[str, Any]:
-    """Copy the checkpoint with the best validation reward to ``out/model.zip`` and its normalisation to
-    ``out/vecnormalize.pkl``; the final model when no checkpoint was evaluated.
+    """Copy the checkpoint with the best validation reward into ``out``; the final one when no checkpoint
+    was evaluated.
 
     Candidates are the checkpoints taken at an evaluation (``checkpoint_every`` a multiple of
     ``eval_every``) and the cloned policy before learning.
@@ -210,46 +290,93 @@ def _select(out: Path, run: TrainingRun, cloning: dict[str, Any] | None, final_s
     if log.is_file():
         with np.load(log) as evaluations:
             for steps, rewards in zip(evaluations["timesteps"], evaluations["results"]):
-                if (checkpoints / f"{run.algo}_{steps}_steps.zip").is_file():
+                if (checkpoints / f"{run.algo}_{steps}_steps" / AGENT_FILE).is_file():
                     candidates.append((float(np.mean(rewards)), str(steps)))
     if candidates:
         best_reward, best = max(candidates, key=lambda c: c[0])
         why = f"best mean validation reward ({best_reward:.1f} over {run.eval_episodes} validation episodes)"
     else:
         best, why = str(final_steps), "no evaluated checkpoint: the final model"
-    shutil.copyfile(checkpoints / f"{run.algo}_{best}_steps.zip", out / MODEL_FILE)
-    shutil.copyfile(checkpoints / f"{run.algo}_vecnormalize_{best}_steps.pkl", out / NORMALIZATION_FILE)
+    selected = checkpoints / f"{run.algo}_{best}_steps"
+    for name in (POLICY_FILE, OPTIMIZER_FILE, AGENT_FILE):  # agent.json last: it marks a complete agent
+        write_atomic(out / name, partial(shutil.copyfile, selected / name))
     return {"checkpoint": f"{best} steps", "why": why}
 
 
-def _normalization_beside(checkpoint: Path) -> Path:
-    """CheckpointCallback names it ``<prefix>_vecnormalize_<steps>_steps.pkl`` next to ``<prefix>_<steps>_steps.zip``."""
-    checkpoint = Path(checkpoint)
-    if checkpoint.name == MODEL_FILE:
-        return checkpoint.with_name(NORMALIZATION_FILE)
-    prefix, steps = checkpoint.stem.rsplit("_", 2)[0], checkpoint.stem.rsplit("_", 2)[1]
-    return checkpoint.with_name(f"{prefix}_vecnormalize_{steps}_steps.pkl")
+def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool = False) -> NormalizedPolicy:
+    """A trained policy with SB3's ``predict``, seeing raw observations as it did in training.
 
-
-def load_policy(directory: Path, obs_mode: str | None = None) -> NormalizedPolicy:
-    """A trained policy with SB3's ``predict``, normalising raw observations as during training."""
+    Args:
+        directory: an agent directory (``agents.agent_files``); with ``trust_pickle``, also a directory of
+            stable-baselines3's files (``model.zip``, ``vecnormalize.pkl``, ``training.json``).
+        obs_mode: the obs_mode reported (default the agent's).
+        trust_pickle: let stable-baselines3 unpickle such files, which runs any code they hold; without
+            it they are refused (``agents.conventions.UntrustedFileError``).
+    """
     directory = Path(directory)
-    summary = json.loads((directory / SUMMARY_FILE).read_text())
-    algorithm = ALGORITHMS[summary["run"]["algo"]]
-    model = algorithm.load(str(directory / MODEL_FILE), device="cpu")
-    run = TrainingRun(**{"activity": False, **summary["run"], "n_envs": 1})
-    normalization = VecNormalize.load(str(directory / NORMALIZATION_FILE), make_vec_env(run, 1, 0, kind="batched"))
-    normalization.training = False
-    return NormalizedPolicy(model, normalization, obs_mode or run.obs_mode)
+    if refuse_pickle(directory, trust_pickle):
+        run = summary_run(directory)
+        model, normalization = load_sb3(directory / SB3_MODEL_FILE, run.algo, make_vec_env(run, 1, 0, kind="batched"))
+        view = cast(LearnerView, normalization.venv)
+        return NormalizedPolicy(model.policy, Normalization.of(normalization), view, obs_mode or run.obs_mode, model.num_timesteps)
+    description = read_agent(directory)
+    environment = description.environment
+    if environment.env_id != ENV_ID:
+        raise ValueError(f"{directory / AGENT_FILE}: the agent was trained on {environment.env_id!r}, not {ENV_ID!r}")
+    run = TrainingRun(algo=description.algorithm, obs_mode=environment.obs_mode, env_kwargs=environment.env_kwargs, activity=environment.activity)
+    view = cast(LearnerView, make_vec_env(run, 1, 0, kind="batched"))
+    expected = {key: space.shape for key, space in description.observation_space.spaces.items()}
+    seen = {key: space.shape for key, space in cast(gym.spaces.Dict, view.observation_space).spaces.items()}
+    if expected != seen:
+        raise ValueError(f"{directory / AGENT_FILE}: the agent observes {expected}, its environment now gives {seen}")
+    return NormalizedPolicy(build_policy(description, directory), description.normalization, view, obs_mode or run.obs_mode,
+                            description.num_timesteps)
+
+
+def summary_run(directory: Path) -> TrainingRun:
+    """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it)."""
+    path = Path(directory) / SUMMARY_FILE
+    try:
+        summary = json.loads(path.read_text())
+        return TrainingRun(**{"activity": False, **summary["run"]})
+    except (OSError, ValueError, KeyError, TypeError) as error:
+        raise ValueError(f"{path}: cannot read the training run ({error})") from None
+
+
+def convert_agent(source: Path, destination: Path, trust_pickle: bool = False) -> Path:
+    """Write an agent of stable-baselines3's files (``model.zip``, ``vecnormalize.pkl`` and ``training.json``
+    of an earlier ``ea-gym train``) as an agent directory of ``agents.agent_files``, ``training.json`` copied.
+
+    The source is unpickled: refused (``UntrustedFileError``) unless ``trust_pickle``.
+    """
+    source, destination = Path(source), Path(destination)
+    if not source.is_dir() or pickled(source) is None or not (source / SB3_MODEL_FILE).is_file():
+        raise ValueError(f"{source}: expected a directory holding stable-baselines3's {SB3_MODEL_FILE} and its normalisation")
+    refuse_pickle(source, trust_pickle)
+    run = summary_run(source)
+    model, normalization = load_sb3(source / SB3_MODEL_FILE, run.algo, make_vec_env(run, 1, 0, kind="batched"))
+    save_agent(destination, model, normalization, trained_environment(run), hyperparameters(run))
+    write_atomic(destination / SUMMARY_FILE, lambda tmp: shutil.copyfile(source / SUMMARY_FILE, tmp))
+    return destination
 
 
 @dataclass
 class NormalizedPolicy:
-    """A trained model with the observation normalisation it was trained with."""
+    """A trained policy with the learner's view of the observations and the normalisation it was trained with.
 
-    model: BaseAlgorithm
-    normalization: VecNormalize
+    Attributes:
+        policy: the stable-baselines3 policy.
+        normalization: the observation normalisation's statistics (``VecNormalize`` in training).
+        view: the ``LearnerView`` the policy was trained through (RUL on a log scale, wear, activity).
+        obs_mode: the environment's obs_mode.
+        num_timesteps: environment steps the policy was trained for.
+    """
+
+    policy: BasePolicy
+    normalization: Normalization
+    view: LearnerView
     obs_mode: str
+    num_timesteps: int
 
     def predict(
         self, observation: Mapping[str, Any], state: Any = None, episode_start: Any = None, deterministic: bool = True,
@@ -257,6 +384,6 @@ class NormalizedPolicy:
         """SB3's ``predict`` on environment observations (one, or a batch with a leading axis)."""
         batched = observation["time_since_maintenance"].ndim == 2
         batch = dict(observation) if batched else {key: value[None] for key, value in observation.items()}
-        learner_view = self.normalization.normalize_obs(cast(LearnerView, self.normalization.venv).forward(batch))
-        actions, state = self.model.predict(learner_view, state, episode_start, deterministic)
+        learner_view = self.normalization.normalize_obs(self.view.forward(batch))
+        actions, state = self.policy.predict(learner_view, state, episode_start, deterministic)
         return (actions if batched else actions[0]), state

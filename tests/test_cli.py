@@ -66,9 +66,9 @@ def test_agents_commands_come_through_the_entry_point_group(capsys):
     from ea_gym.cli_args import COMMAND_GROUP
 
     assert {e.name: e.value for e in entry_points(group=COMMAND_GROUP)} == {
-        "train": "agents.cli:add_train", "benchmark": "agents.cli:add_benchmark"}
+        "train": "agents.cli:add_train", "benchmark": "agents.cli:add_benchmark", "convert-agent": "agents.cli:add_convert_agent"}
     with pytest.raises(SystemExit):
         main(["--help"])
     text = capsys.readouterr().out
-    for command in ("simulate", "phm", "reproduce", "train", "benchmark"):
+    for command in ("simulate", "phm", "reproduce", "train", "benchmark", "convert-agent"):
         assert command in text

@@ -14,7 +14,7 @@ from agents.benchmark.settings import RULES, display_path
 from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.timelines import record_timeline
 from agents.benchmark.tuning import RuleBuilder
-from agents.conventions import AGENT_FILES, SUMMARY_FILE
+from agents.conventions import AGENT_FILES, SUMMARY_FILE, pickled
 from agents.evaluation import EpisodeStats, evaluate, mean_ci95
 from agents.policies import ActionMap, RunToFailure
 from ea_gym.files import finite_or_none, json_ready
@@ -45,7 +45,7 @@ def agent_missing(directory: Path | None) -> str | None:
     if not directory.is_dir():
         return f"no trained policy at {display_path(directory)} (no such directory)"
     missing = [name for name in AGENT_FILES if not (directory / name).is_file()]
-    if missing:
+    if missing and pickled(directory) is None:  # stable-baselines3's files: loaded, or refused, by load_policy
         return f"no trained policy at {display_path(directory)} (missing {', '.join(missing)})"
     return None
 
@@ -56,9 +56,11 @@ def plan_policies(
     actions: ActionMap,
     learned: Mapping[str, Path | None],
     say: Callable[[str], None],
+    trust_pickle: bool = False,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """The policies to evaluate, name -> policy, obs_mode, label, parameter, action, parameter_name, kind
-    (and, for trained agents, extra), and the skipped agents, name -> why."""
+    (and, for trained agents, extra), and the skipped agents, name -> why. ``trust_pickle``: see
+    ``agents.training.load_policy``."""
     plan: dict[str, dict[str, Any]] = {}
     for name in RULES:
         label, mode, parameter_name = RULES[name]

@@ -28,7 +28,7 @@ from agents.benchmark.settings import (
 )
 from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.tuning import rule_builders, tune_rules
-from agents.conventions import TRAINING_SEED, VALIDATION_SEED
+from agents.conventions import TRAINING_SEED, VALIDATION_SEED, refuse_pickle
 from agents.policies import ActionMap
 from ea_gym.files import json_ready, write_json, write_text
 
@@ -50,6 +50,7 @@ def run_benchmark(
     timeline_seed: int | None = None,
     command: str | None = None,
     command_note: str | None = None,
+    trust_pickle: bool = False,
 ) -> dict[str, Any]:
     """Tune, evaluate and compare the maintenance policies; write the results to ``out``.
 
@@ -75,6 +76,9 @@ def run_benchmark(
         command: the command line that reproduces this run, written into the outputs (default the
             equivalent ``ea-gym benchmark`` command).
         command_note: a sentence written under the command in the markdown.
+        trust_pickle: also load agents saved as stable-baselines3's files (``model.zip``, ``vecnormalize.pkl``),
+            which are unpickled and so run any code they hold; without it such an agent is refused
+            (``agents.conventions.UntrustedFileError``) before any work.
 
     Returns:
         The dictionary written to ``benchmark.json``.
@@ -83,6 +87,9 @@ def run_benchmark(
     out = Path(out)
     env_kwargs = dict(env_kwargs or {})
     evaluation, tuning, grids, extra = _checked(episodes, seed, tune_episodes, grids, env_kwargs, ppo_policies)
+    for directory in (ppo, *extra.values()):
+        if directory is not None:
+            refuse_pickle(Path(directory), trust_pickle)
     timeline_seed = evaluation.start if timeline_seed is None else int(timeline_seed)
     if command is None:
         command = _default_command(episodes, seed, out, ppo, tune_episodes)
@@ -94,7 +101,8 @@ def run_benchmark(
     stopwatch.say(f"tuning on seeds {tuning.start}..{tuning.stop - 1}")
     builders = rule_builders(actions)
     tuned, tables = tune_rules(grids, builders, make, tuning, stopwatch, batch_size)
-    plan, skipped = plan_policies(tuned, builders, actions, {"ppo": None if ppo is None else Path(ppo), **extra}, stopwatch.say)
+    learned = {"ppo": None if ppo is None else Path(ppo), **extra}
+    plan, skipped = plan_policies(tuned, builders, actions, learned, stopwatch.say, trust_pickle=trust_pickle)
 
     stopwatch.say(f"evaluating on seeds {evaluation.start}..{evaluation.stop - 1}")
     order = [n for n in (*EVALUATION_ORDER, *extra) if n in plan]
