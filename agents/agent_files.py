@@ -36,7 +36,7 @@ import numpy as np
 import torch as th
 from gymnasium import spaces
 from safetensors import SafetensorError
-from safetensors.torch import load_file, load_model, save_file, save_model
+from safetensors.torch import load_file, save
 from stable_baselines3 import A2C, DQN, PPO
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy, MultiInputActorCriticPolicy
@@ -229,8 +229,8 @@ def save_agent(
         "optimizer": {"param_groups": optimizer_groups},
     }
     directory.mkdir(parents=True, exist_ok=True)
-    write_atomic(directory / POLICY_FILE, lambda tmp: save_model(policy, tmp, metadata={"format": "pt"}))
-    write_atomic(directory / OPTIMIZER_FILE, lambda tmp: save_file(optimizer_tensors, tmp, metadata={"format": "pt"}))
+    _write_tensors(directory / POLICY_FILE, policy.state_dict())
+    _write_tensors(directory / OPTIMIZER_FILE, optimizer_tensors)
     write_json(directory / AGENT_FILE, description)
     return directory
 
@@ -296,7 +296,7 @@ def load_weights(policy: th.nn.Module, directory: Path) -> None:
     """Load ``directory/policy.safetensors`` into ``policy`` (every tensor, shapes checked)."""
     path = Path(directory) / POLICY_FILE
     try:
-        load_model(policy, path, strict=True, device="cpu")
+        policy.load_state_dict(load_file(path, device="cpu"), strict=True)
     except (OSError, SafetensorError, RuntimeError) as error:
         raise ValueError(f"{path}: cannot load the policy's weights ({_first_line(error)})") from None
 
@@ -403,11 +403,17 @@ def _resolve_kwargs(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
     return resolved
 
 
+def _write_tensors(path: Path, tensors: Mapping[str, th.Tensor]) -> None:
+    """A safetensors file, atomically; every tensor copied (a module shared under two names, as the actor's and
+    the critic's features extractor, is stored twice)."""
+    data = save({name: tensor.detach().cpu().clone().contiguous() for name, tensor in tensors.items()}, metadata={"format": "pt"})
+    write_atomic(path, lambda tmp: Path(tmp).write_bytes(data))
+
+
 def _optimizer_state(optimizer: th.optim.Optimizer) -> tuple[dict[str, th.Tensor], list[dict[str, Any]]]:
     """The optimizer's per-parameter state as tensors named ``<parameter index>.<name>``, and its parameter groups."""
     state = optimizer.state_dict()
-    tensors = {f"{index}.{name}": th.as_tensor(value).detach().cpu().contiguous()
-               for index, entries in state["state"].items() for name, value in entries.items()}
+    tensors = {f"{index}.{name}": th.as_tensor(value) for index, entries in state["state"].items() for name, value in entries.items()}
     groups = [{k: list(v) if isinstance(v, tuple) else v for k, v in group.items()} for group in state["param_groups"]]
     return tensors, groups
 

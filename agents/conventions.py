@@ -71,7 +71,7 @@ def refuse_pickle(path: Path, trust_pickle: bool) -> bool:
     why = pickled(path)
     if why is not None and not trust_pickle:
         raise UntrustedFileError(
-            f"{why}: loading it would run any code it holds; pass {TRUST_PICKLE} (trust_pickle=True) only if you trust "
+            f"{why}: loading it would run any code it holds; pass {TRUST_PICKLE} only if you trust "
             f"where it came from, or give an agent directory ({AGENT_FILE}, {POLICY_FILE})"
         )
     return why is not None
