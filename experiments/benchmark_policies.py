@@ -12,7 +12,7 @@ What it measures
 
 How to run (from the repository root)
     .venv/bin/python experiments/benchmark_policies.py [--episodes 100] [--seed 0] [--tune-episodes 300]
-        [--ppo DIR | --no-ppo] [--out DIR] [--no-progress]
+        [--ppo DIR | --no-ppo] [--out DIR] [--no-progress] [--trust-pickle]
 
     Writes DIR/benchmark.json, benchmark.md, cost_distribution.png, timelines.png and timelines.json
     (default DIR: experiments/results/benchmark), atomically, with the exact command in the markdown.
@@ -63,6 +63,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     ppo.add_argument("--no-ppo", action="store_true", help="evaluate no PPO agent")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder (default experiments/results/benchmark)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    parser.add_argument("--trust-pickle", action="store_true",
+                        help="also load agents saved as stable-baselines3's files (model.zip, vecnormalize.pkl), which run any code they hold")
     args = parser.parse_args(argv)
     if args.episodes < 2 or args.tune_episodes < 1:
         parser.error("--episodes must be >= 2 and --tune-episodes >= 1")
@@ -83,7 +85,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     started = time.perf_counter()
     result = run_benchmark(
         args.episodes, args.seed, args.out, main_ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress,
-        ppo_policies=extra, command=command, command_note=note,
+        ppo_policies=extra, command=command, command_note=note, trust_pickle=args.trust_pickle,
     )
     wall = time.perf_counter() - started
     print((args.out / "benchmark.md").read_text())

@@ -1,4 +1,4 @@
-"""A tiny training run saves a model that reloads, predicts valid actions and resumes."""
+"""A tiny training run saves an agent that reloads, predicts valid actions and resumes."""
 
 import json
 
@@ -20,13 +20,15 @@ def trained(tmp_path_factory):
     return out, summary
 
 
-def test_training_writes_model_normalisation_checkpoints_and_summary(trained):
+def test_training_writes_agent_checkpoints_and_summary_without_pickle(trained):
     out, summary = trained
-    for name in ("model.zip", "vecnormalize.pkl", "training.json", "best/best_model.zip", "evaluations.npz"):
-        path = out / name if name != "evaluations.npz" else out / "evaluations" / name
-        assert path.is_file(), name
-    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == [
-        "ppo_128_steps.zip", "ppo_256_steps.zip", "ppo_vecnormalize_128_steps.pkl", "ppo_vecnormalize_256_steps.pkl"]
+    agent = ("agent.json", "policy.safetensors", "optimizer.safetensors")
+    for name in (*agent, "training.json", *(f"best/{n}" for n in agent), "evaluations/evaluations.npz"):
+        assert (out / name).is_file(), name
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["ppo_128_steps", "ppo_256_steps"]
+    for checkpoint in (out / "checkpoints").iterdir():
+        assert sorted(p.name for p in checkpoint.iterdir()) == sorted(agent)
+    assert not [p for p in out.rglob("*") if p.suffix in (".zip", ".pkl")]
     assert json.loads((out / "training.json").read_text())["run"]["timesteps"] == summary["run"]["timesteps"] == 256
 
 
@@ -46,9 +48,11 @@ def test_training_resumes_from_a_checkpoint(trained, tmp_path):
     out, _ = trained
     run = TrainingRun(algo="ppo", timesteps=128, obs_mode="oracle", n_envs=4, eval_every=10_000, eval_episodes=1,
                       checkpoint_every=10_000, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
-    summary = train(run, tmp_path, resume=out / "checkpoints" / "ppo_128_steps.zip", progress_bar=False)
-    assert summary["resumed_from"].endswith("ppo_128_steps.zip")
-    assert load_policy(tmp_path).model.num_timesteps == 128 + 128
+    summary = train(run, tmp_path, resume=out / "checkpoints" / "ppo_128_steps", progress_bar=False)
+    assert summary["resumed_from"].endswith("ppo_128_steps")
+    assert load_policy(tmp_path).num_timesteps == 128 + 128
+    with pytest.raises(ValueError, match="trained with obs_mode 'oracle', this run has 'phm'"):
+        train(TrainingRun(timesteps=64, obs_mode="phm", env_kwargs={"horizon": 50}), tmp_path / "x", resume=out, progress_bar=False)
 
 
 def test_train_command_rejects_bad_arguments(capsys):
@@ -64,9 +68,10 @@ def test_the_selected_model_is_the_best_validated_checkpoint(trained):
     out, summary = trained
     with np.load(out / "evaluations" / "evaluations.npz") as log:
         rewards = dict(zip(log["timesteps"].tolist(), log["results"].mean(axis=1)))
-    best = max((steps for steps in rewards if (out / "checkpoints" / f"ppo_{steps}_steps.zip").is_file()), key=rewards.get)
+    best = max((steps for steps in rewards if (out / "checkpoints" / f"ppo_{steps}_steps").is_dir()), key=rewards.get)
     assert summary["selected"]["checkpoint"] == f"{best} steps"
-    assert (out / "model.zip").read_bytes() == (out / "checkpoints" / f"ppo_{best}_steps.zip").read_bytes()
+    for name in ("agent.json", "policy.safetensors", "optimizer.safetensors"):
+        assert (out / name).read_bytes() == (out / "checkpoints" / f"ppo_{best}_steps" / name).read_bytes()
 
 
 def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
@@ -78,7 +83,7 @@ def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
     assert sum(cloning["action_counts"]) == cloning["steps"] == 2048
     # an untrained policy agrees with the teacher about 1 step in 7; the clone nearly always
     assert cloning["accuracy"] >= 0.9
-    assert (tmp_path / "checkpoints" / "ppo_0_steps.zip").is_file()  # the clone, before learning
+    assert (tmp_path / "checkpoints" / "ppo_0_steps" / "agent.json").is_file()  # the clone, before learning
     assert summary["selected"]["checkpoint"] in ("0 steps", "128 steps")
     with pytest.raises(ValueError, match="teacher must be one of"):
         run = TrainingRun(timesteps=64, teacher="guess", n_envs=2, hyperparameters={"n_steps": 32, "batch_size": 64})
