@@ -24,6 +24,7 @@ from typing import Any, cast
 
 import gymnasium as gym
 import numpy as np
+from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
@@ -194,24 +195,12 @@ def train(
             _check_resumable(run, stored)
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    algorithm = ALGORITHMS[run.algo]
     settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
     tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
     env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs)
     # validation episodes run 8 at a time on the batched env
     evaluation_env = make_vec_env(run, min(run.eval_episodes, 8), VALIDATION_SEED, kind="batched")
-    if resume is not None and stored is None:  # stable-baselines3's files, trusted
-        model, env = load_sb3(resume / SB3_MODEL_FILE if resume.is_dir() else resume, run.algo, env, seed=run.seed)
-    else:
-        env = normalize(env)
-        policy: Any = "MultiInputPolicy" if stored is None else stored.policy_class
-        policy_kwargs = None if stored is None else stored.policy_kwargs
-        model = algorithm(policy, env, seed=run.seed, verbose=0, tensorboard_log=tensorboard, policy_kwargs=policy_kwargs, **settings)
-        if stored is not None and resume is not None:
-            stored.normalization.restore(env)
-            load_weights(model.policy, resume)
-            load_optimizer(model.policy.optimizer, stored, resume)
-            model.num_timesteps = stored.num_timesteps
+    model, env = _model(run, env, settings, tensorboard, resume, stored)
     evaluation_env = normalize(evaluation_env, training=False)
     evaluation_env.obs_rms = env.obs_rms
     environment = trained_environment(run)
@@ -249,6 +238,25 @@ def train(
     write_json(out / SUMMARY_FILE, summary)
     env.close()
     return summary
+
+
+def _model(
+    run: TrainingRun, env: VecEnv, settings: dict[str, Any], tensorboard: str | None, resume: Path | None, stored: AgentDescription | None,
+) -> tuple[BaseAlgorithm, VecNormalize]:
+    """The model to train and its normalised environment: new, resumed from an agent directory (``stored``
+    read from ``resume``), or resumed from stable-baselines3's files (``resume`` without ``stored``: trusted)."""
+    if resume is not None and stored is None:
+        return load_sb3(resume / SB3_MODEL_FILE if resume.is_dir() else resume, run.algo, env, seed=run.seed)
+    normalized = normalize(env)
+    policy: Any = "MultiInputPolicy" if stored is None else stored.policy_class
+    policy_kwargs = None if stored is None else stored.policy_kwargs
+    model = ALGORITHMS[run.algo](policy, normalized, seed=run.seed, verbose=0, tensorboard_log=tensorboard, policy_kwargs=policy_kwargs, **settings)
+    if stored is not None and resume is not None:
+        stored.normalization.restore(normalized)
+        load_weights(model.policy, resume)
+        load_optimizer(model.policy.optimizer, stored, resume)
+        model.num_timesteps = stored.num_timesteps
+    return model, normalized
 
 
 class SaveAgent(BaseCallback):

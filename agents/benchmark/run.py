@@ -76,9 +76,8 @@ def run_benchmark(
         command: the command line that reproduces this run, written into the outputs (default the
             equivalent ``ea-gym benchmark`` command).
         command_note: a sentence written under the command in the markdown.
-        trust_pickle: also load agents saved as stable-baselines3's files (``model.zip``, ``vecnormalize.pkl``),
-            which are unpickled and so run any code they hold; without it such an agent is refused
-            (``agents.conventions.UntrustedFileError``) before any work.
+        trust_pickle: also load agents saved as stable-baselines3's files, which run any code they hold when
+            unpickled; without it they are refused before any work (``agents.conventions.refuse_pickle``).
 
     Returns:
         The dictionary written to ``benchmark.json``.
@@ -86,10 +85,7 @@ def run_benchmark(
     started = time.perf_counter()
     out = Path(out)
     env_kwargs = dict(env_kwargs or {})
-    evaluation, tuning, grids, extra = _checked(episodes, seed, tune_episodes, grids, env_kwargs, ppo_policies)
-    for directory in (ppo, *extra.values()):
-        if directory is not None:
-            refuse_pickle(Path(directory), trust_pickle)
+    evaluation, tuning, grids, extra = _checked(episodes, seed, tune_episodes, grids, env_kwargs, ppo_policies, ppo, trust_pickle)
     timeline_seed = evaluation.start if timeline_seed is None else int(timeline_seed)
     if command is None:
         command = _default_command(episodes, seed, out, ppo, tune_episodes)
@@ -101,8 +97,7 @@ def run_benchmark(
     stopwatch.say(f"tuning on seeds {tuning.start}..{tuning.stop - 1}")
     builders = rule_builders(actions)
     tuned, tables = tune_rules(grids, builders, make, tuning, stopwatch, batch_size)
-    learned = {"ppo": None if ppo is None else Path(ppo), **extra}
-    plan, skipped = plan_policies(tuned, builders, actions, learned, stopwatch.say, trust_pickle=trust_pickle)
+    plan, skipped = plan_policies(tuned, builders, actions, {"ppo": None if ppo is None else Path(ppo), **extra}, stopwatch.say, trust_pickle)
 
     stopwatch.say(f"evaluating on seeds {evaluation.start}..{evaluation.stop - 1}")
     order = [n for n in (*EVALUATION_ORDER, *extra) if n in plan]
@@ -124,9 +119,10 @@ def run_benchmark(
 
 def _checked(
     episodes: int, seed: int, tune_episodes: int, grids: Mapping[str, Sequence[Any]] | None, env_kwargs: Mapping[str, Any],
-    ppo_policies: Mapping[str, Path] | None,
+    ppo_policies: Mapping[str, Path] | None, ppo: Path | None, trust_pickle: bool,
 ) -> tuple[range, range, dict[str, tuple[Any, ...]], dict[str, Path | None]]:
-    """run_benchmark's arguments checked before any work: the evaluation and tuning seeds, the grids, the extra agents."""
+    """run_benchmark's arguments checked before any work: the evaluation and tuning seeds, the grids, the extra agents
+    (and no agent of pickled files unless ``trust_pickle``)."""
     for reserved in ("obs_mode", "continue_after_failure"):
         if reserved in env_kwargs:
             raise ValueError(f"env_kwargs must not set {reserved!r}: the benchmark sets it")
@@ -143,6 +139,9 @@ def _checked(
     clash = sorted(set(extra) & {"ppo", *RULES})
     if clash:
         raise ValueError(f"ppo_policies: the names {clash} are taken by the benchmark's own policies")
+    for directory in (ppo, *extra.values()):
+        if directory is not None:
+            refuse_pickle(Path(directory), trust_pickle)
     return evaluation, tuning, merged, extra
 
 
