@@ -29,7 +29,16 @@ class TrainingConfig:
     weight_decay: float = 1e-4
 
 
-def _network(n_features: int, hidden: Sequence[int], n_classes: int) -> nn.Sequential:
+def _network(n_features: int, hidden: Sequence[int], n_classes: int, seed: int | None = None) -> nn.Sequential:
+    """The MLP, its initial weights drawn from ``seed`` (None: any, for weights loaded next) without
+    touching torch's global random state."""
+    with torch.random.fork_rng(devices=[]):
+        if seed is not None:
+            torch.manual_seed(seed)
+        return _layers(n_features, hidden, n_classes)
+
+
+def _layers(n_features: int, hidden: Sequence[int], n_classes: int) -> nn.Sequential:
     layers: list[nn.Module] = []
     width = n_features
     for size in hidden:
@@ -89,8 +98,7 @@ class FaultClassifier:
         rng: np.random.Generator,
         config: TrainingConfig,
     ) -> dict[str, float]:
-        torch.manual_seed(int(rng.integers(2**31)))
-        self.network = _network(features.shape[1], config.hidden, len(self.classes))
+        self.network = _network(features.shape[1], config.hidden, len(self.classes), seed=int(rng.integers(2**31)))
         self.hidden = config.hidden
         self.mean = features.mean(axis=0)
         self.scale = np.where(features.std(axis=0) > 0, features.std(axis=0), 1.0)

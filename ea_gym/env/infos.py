@@ -58,20 +58,48 @@ class StepInfo:
             "events": [str(event) for event in self.events[i]],
         }
 
+    def where(self, mask: np.ndarray, other: StepInfo) -> StepInfo:
+        """This info with the rows of the systems in the boolean ``mask`` (N,) taken from ``other``."""
+        rows = np.asarray(mask, dtype=bool)
+        column = rows[:, None]
+        return StepInfo(
+            self.parameter_names,
+            np.where(column, other.true_parameters, self.true_parameters),
+            np.where(rows, other.true_rul, self.true_rul),
+            {key: np.where(rows, other.costs[key], value) for key, value in self.costs.items()},
+            np.where(rows, other.failed, self.failed),
+            [theirs if chosen else ours for chosen, ours, theirs in zip(rows.tolist(), self.events, other.events)],
+        )
+
     def batched(self, mask: np.ndarray) -> dict[str, Any]:
-        """The vector environment's ``info``: each key's values of all systems, with Gymnasium's
-        ``_key`` mask of the systems the values stand for."""
-        events = np.empty(len(self.events), dtype=object)
-        events[:] = [[str(event) for event in happened] for happened in self.events]
-        return {
-            "true_parameters": {name: self.true_parameters[:, j] for j, name in enumerate(self.parameter_names)},
-            "_true_parameters": mask,
-            "true_rul": self.true_rul,
-            "_true_rul": mask,
-            "cost": dict(self.costs),
-            "_cost": mask,
-            "failed": self.failed,
-            "_failed": mask,
+        """The vector environment's ``info`` for the systems in the boolean ``mask`` (N,), laid out as
+        Gymnasium's ``VectorEnv._add_info`` lays out the single environments' infos: every key's values
+        in an array over the N systems (zero, False or None where the mask is False), nested dicts
+        likewise, each key beside its ``_key`` mask. Empty when no system is in the mask."""
+        rows = np.asarray(mask, dtype=bool)
+        if not rows.any():
+            return {}
+        events = np.full(len(rows), None, dtype=object)
+        for i in np.flatnonzero(rows).tolist():
+            events[i] = [str(event) for event in self.events[i]]
+        values: dict[str, Any] = {
+            "true_parameters": _masked({name: self.true_parameters[:, j] for j, name in enumerate(self.parameter_names)}, rows),
+            "true_rul": np.where(rows, self.true_rul, 0.0),
+            "cost": _masked(self.costs, rows),
+            "failed": self.failed & rows,
             "events": events,
-            "_events": mask,
         }
+        return _with_masks(values, rows)
+
+
+def _masked(columns: dict[str, np.ndarray], rows: np.ndarray) -> dict[str, Any]:
+    """Float columns (N,) as ``_add_info`` batches them: zero outside ``rows``, each with its mask."""
+    return _with_masks({key: np.where(rows, value, 0.0) for key, value in columns.items()}, rows)
+
+
+def _with_masks(values: dict[str, Any], rows: np.ndarray) -> dict[str, Any]:
+    infos: dict[str, Any] = {}
+    for key, value in values.items():
+        infos[key] = value
+        infos[f"_{key}"] = rows.copy()  # one mask per key, as Gymnasium's (a caller may write into one)
+    return infos

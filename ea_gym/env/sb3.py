@@ -6,6 +6,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
 
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
@@ -24,7 +25,7 @@ class MaintenanceVecEnv(VecEnv):
     """
 
     def __init__(self, num_envs: int, **kwargs: Any):
-        self.venv = BondGraphMaintenanceVectorEnv(num_envs, **kwargs)
+        self.venv = BondGraphMaintenanceVectorEnv(num_envs, autoreset_mode=AutoresetMode.SAME_STEP, **kwargs)
         super().__init__(num_envs, self.venv.single_observation_space, self.venv.single_action_space)
         self._actions: np.ndarray | None = None
 
@@ -46,12 +47,10 @@ class MaintenanceVecEnv(VecEnv):
         dones = terminated | truncated
         per_env = []
         for i in range(self.num_envs):
+            info = self.venv.step_info.system(i)  # the step's info; an ended episode's last one
             if dones[i]:
-                info = dict(infos["final_info"][i])
                 info["terminal_observation"] = infos["final_obs"][i]
                 self.reset_infos[i] = self.venv.core.reset_info().system(i)
-            else:
-                info = self.venv.step_info.system(i)
             info["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
             per_env.append(info)
         return observation, rewards.astype(np.float32), dones, per_env
