@@ -32,6 +32,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from gymnasium.vector import AutoresetMode
 
 from ea_gym.env.events import ActionKind, Replacement, parse_action, parse_event
 from ea_gym.env.infos import COST_ITEMS
@@ -188,6 +189,9 @@ def _episode(policy: Any, env: Any, seed: int) -> dict[str, float]:
 def _batch(policy: Any, env: Any, seeds: Sequence[int] | np.ndarray, progress: Any) -> dict[str, np.ndarray]:
     """One episode per seed on a vector environment of ``len(seeds)`` envs, every episode run once to its end."""
     n = len(seeds)
+    mode = env.metadata.get("autoreset_mode", AutoresetMode.NEXT_STEP)
+    if mode != AutoresetMode.NEXT_STEP:  # SAME_STEP puts an episode's last info aside; DISABLED refuses the steps after an end
+        raise ValueError(f"a vector environment for evaluation must autoreset in AutoresetMode.NEXT_STEP (Gymnasium's default), got {mode}")
     observation, _ = env.reset(seed=[int(s) for s in seeds])
     tally = _Tally(n, getattr(env.unwrapped, "action_meanings", ()))
     state, start, active = None, np.ones(n, dtype=bool), np.ones(n, dtype=bool)

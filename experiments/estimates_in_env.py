@@ -134,7 +134,7 @@ def run_fault(
         rul_true = np.asarray(info["true_rul"], dtype=float)
         position = position_toward_limit(np.asarray(info["true_parameters"][fault], dtype=float), nominal, limits)
         done = terminated | truncated
-        # the step that ends an episode shows the next one's first observation: not counted
+        # the step that ends an episode is left out (past the limit, or the horizon's; the results were measured so)
         counted = running & ~done & (position >= 0.5) & (position < 1.0) & (rul_true > 0)
         reached |= counted
         rul = np.asarray(observation["rul"], dtype=float)

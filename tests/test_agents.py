@@ -319,6 +319,11 @@ def test_batched_evaluation_equals_one_episode_at_a_time():
     assert results["oracle"]["corrective_steps"].sum() > 0
     with pytest.raises(ValueError, match="batch_size"):
         evaluate(RunToFailure(ACTIONS), vector, seeds, progress=False, batch_size=0)
+    same_step = lambda n: gym.make_vec(  # noqa: E731
+        "ea_gym/SpringMassDamper-v0", num_envs=n, vectorization_mode="vector_entry_point", autoreset_mode="SameStep", **kwargs
+    )
+    with pytest.raises(ValueError, match="must autoreset in AutoresetMode.NEXT_STEP"):
+        evaluate(RunToFailure(ACTIONS), same_step, seeds, progress=False, batch_size=2)
 
 
 def test_tune_picks_the_cheapest_value():
