@@ -35,7 +35,7 @@ def _write_measurements(scenario: Scenario, path: Path) -> None:
     import numpy as np
 
     from ea_gym.measurements import write_measurements
-    from ea_gym.phm.harness import scenario_measurements
+    from ea_gym.phm import scenario_measurements
 
     measurements = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
     write_measurements(path, scenario.model, measurements)
@@ -146,8 +146,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
 
     from ea_gym.measurements import read_measurements
     from ea_gym.model_files import load_system
-    from ea_gym.phm import PHMConfig, build_chain, classifier_for
-    from ea_gym.phm.harness import run_measurements
+    from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_measurements
     from ea_gym.reporting import write_phm_outputs
 
     if args.system is None:

@@ -6,7 +6,7 @@ inversion of :mod:`~ea_gym.phm.inversion`, the tracking filters of :mod:`~ea_gym
 :mod:`~ea_gym.phm.estimators` pairs each estimator kind
 with its prognosis) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
 :mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
-runs scenarios and recorded signals through a chain.
+runs scenarios and recorded signals through a chain (whole, or streamed as they arrive: ``StreamingChain``).
 """
 
 from ea_gym.phm.chain import HealthStatus, PHMChain
@@ -19,7 +19,17 @@ from ea_gym.phm.estimation import (
     StepSignals,
 )
 from ea_gym.phm.estimators import ESTIMATORS, EstimationStages, make_stages
-from ea_gym.phm.harness import ChainRun, build_chain, classifier_for, run_scenario, run_signals
+from ea_gym.phm.harness import (
+    ChainRun,
+    StreamingChain,
+    build_chain,
+    classifier_for,
+    fitted_initial_state,
+    run_measurements,
+    run_scenario,
+    run_signals,
+    scenario_measurements,
+)
 from ea_gym.phm.inversion import EAInversion, EstimatorConfig
 from ea_gym.phm.isolation import EvidenceWeights, balance_chi_square
 from ea_gym.phm.prognosis import (
@@ -53,6 +63,7 @@ __all__ = [
     "ParameterEstimator",
     "PrognosisStage",
     "StepSignals",
+    "StreamingChain",
     "TrackingConfig",
     "TrackingEstimator",
     "TrendFit",
@@ -62,9 +73,12 @@ __all__ = [
     "calibrate_thresholds",
     "classifier_for",
     "drift_end_of_life",
+    "fitted_initial_state",
     "make_stages",
     "predict_end_of_life",
     "relative_residuals",
+    "run_measurements",
     "run_scenario",
     "run_signals",
+    "scenario_measurements",
 ]
