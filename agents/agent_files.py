@@ -25,7 +25,6 @@ that trusts them (``--trust-pickle``, ``agents.conventions.refuse_pickle``), e.g
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -47,6 +46,7 @@ from stable_baselines3.dqn.policies import DQNPolicy
 from stable_baselines3.dqn.policies import MultiInputPolicy as DQNMultiInputPolicy
 
 from agents.conventions import AGENT_FILE, OPTIMIZER_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE
+from ea_gym.documents import DocumentError, read_document
 from ea_gym.files import write_atomic, write_json
 
 __all__ = [
@@ -98,8 +98,8 @@ class RunningStats:
         shape = _shape(_field(data, "shape", list, where), where)
         mean = _array(_field(data, "mean", list, where), shape, np.float64, f"{where}.mean")
         var = _array(_field(data, "var", list, where), shape, np.float64, f"{where}.var")
-        if np.any(var < 0):
-            raise ValueError(f"{where}.var: variances must be >= 0")
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
+            raise ValueError(f"{where}: means must be finite and variances finite and >= 0")
         return cls(mean, var, _number(_field(data, "count", (int, float), where), f"{where}.count"))
 
 
@@ -239,8 +239,8 @@ def read_agent(directory: Path) -> AgentDescription:
     """``directory/agent.json`` read and checked (no weights loaded); ValueError naming the field otherwise."""
     path = Path(directory) / AGENT_FILE
     try:
-        data = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as error:
+        data = read_document(path)
+    except DocumentError as error:
         raise ValueError(f"{path}: cannot read the agent's description ({error})") from None
     where = str(path)
     if not isinstance(data, dict) or data.get("format") != FORMAT:
@@ -294,7 +294,7 @@ def build_policy(description: AgentDescription, directory: Path) -> BasePolicy:
 
 def load_weights(policy: th.nn.Module, directory: Path) -> None:
     """Load ``directory/policy.safetensors`` into ``policy`` (every tensor, shapes checked)."""
-    path = Path(directory) / POLICY_FILE
+    path = _regular(Path(directory) / POLICY_FILE)
     try:
         policy.load_state_dict(load_file(path, device="cpu"), strict=True)
     except (OSError, SafetensorError, RuntimeError) as error:
@@ -303,7 +303,7 @@ def load_weights(policy: th.nn.Module, directory: Path) -> None:
 
 def load_optimizer(optimizer: th.optim.Optimizer, description: AgentDescription, directory: Path) -> None:
     """Load ``directory/optimizer.safetensors`` and the parameter groups of ``agent.json`` into ``optimizer``."""
-    path = Path(directory) / OPTIMIZER_FILE
+    path = _regular(Path(directory) / OPTIMIZER_FILE)
     if description.optimizer_groups is None:
         raise ValueError(f"{Path(directory) / AGENT_FILE}: optimizer.param_groups is missing: the agent cannot resume training")
     try:
@@ -464,6 +464,13 @@ def _number(value: float, where: str) -> float:
     if not math.isfinite(value):
         raise ValueError(f"{where} must be finite, got {value}")
     return float(value)
+
+
+def _regular(path: Path) -> Path:
+    """``path``, if it is a regular file (a FIFO would block the reader)."""
+    if not path.is_file():
+        raise ValueError(f"{path}: not a regular file")
+    return path
 
 
 def _first_line(error: BaseException) -> str:

@@ -13,7 +13,6 @@ them or to convert them (``convert_agent``).
 from __future__ import annotations
 
 import importlib.util
-import json
 import shutil
 import time
 from collections.abc import Callable, Mapping
@@ -57,6 +56,7 @@ from agents.conventions import (
 )
 from agents.imitation import clone
 from agents.observations import LearnerView, normalised_keys
+from ea_gym.documents import read_document
 from ea_gym.env import ENV_ID
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_atomic, write_json
@@ -345,9 +345,8 @@ def summary_run(directory: Path) -> TrainingRun:
     """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it)."""
     path = Path(directory) / SUMMARY_FILE
     try:
-        summary = json.loads(path.read_text())
-        return TrainingRun(**{"activity": False, **summary["run"]})
-    except (OSError, ValueError, KeyError, TypeError) as error:
+        return TrainingRun(**{"activity": False, **read_document(path)["run"]})
+    except (ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path}: cannot read the training run ({error})") from None
 
 

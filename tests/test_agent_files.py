@@ -4,6 +4,7 @@ files that would run code when loaded (SB3 zips, pickles) are refused unless the
 import base64
 import contextlib
 import json
+import os
 import pickle
 import shutil
 import zipfile
@@ -136,6 +137,8 @@ def test_agent_json_is_numbers_and_names(tmp_path):
     (lambda d: d["normalization"]["obs_rms"]["ea"].update(var=[1.0]), "normalization.obs_rms.ea.var must hold 4 numbers"),
     (lambda d: d.update(version=99), "newer than this ea-gym reads"),
     (lambda d: d["environment"].pop("obs_mode"), "field 'obs_mode' is missing"),
+    (lambda d: d["normalization"]["obs_rms"]["ea"].update(mean=[float("inf")] * 4), "means must be finite"),
+    (lambda d: d.update(deep=json.loads("[" * 100 + "]" * 100)), "nests deeper than"),
 ])
 def test_a_bad_agent_json_is_refused_naming_the_field(edit, message, tmp_path):
     run, model, env = _trained("ppo")
@@ -224,6 +227,10 @@ def test_pickles_beside_or_inside_an_agent_are_never_unpickled(tmp_path, observa
     with pytest.raises(ValueError, match="policy.safetensors: cannot load the policy's weights"):
         build_policy(read_agent(agent), agent)
     assert not marker.exists()
+    (agent / "policy.safetensors").unlink()
+    os.mkfifo(agent / "policy.safetensors")  # opening it for reading would wait for a writer forever
+    with pytest.raises(ValueError, match="policy.safetensors: not a regular file"):
+        build_policy(read_agent(agent), agent)
 
 
 def test_trusted_sb3_files_load_convert_and_resume(tmp_path, observations, capsys):
