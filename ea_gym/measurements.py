@@ -101,16 +101,19 @@ def read_measurements(
         raw = file.read(max_bytes + 1)  # the file may have grown since
     if len(raw) > max_bytes:
         raise MeasurementError(f"{path}: more than the {max_bytes} bytes read; split the record")
+    lines = raw.count(b"\n") + (not raw.endswith(b"\n"))  # at least the header and the samples
+    if lines - 1 > max_rows:
+        raise MeasurementError(f"{path}: {lines - 1} lines after the header, more than the {max_rows} samples read; split the record")
     rows = csv.reader(io.StringIO(raw.decode("utf-8", errors="replace"), newline=""))
     header = next(rows, None)
     if header is None:
         raise MeasurementError(f"{path}: empty file; expected a header row with columns {', '.join(measurement_columns(model))}")
     names = [name.strip() for name in header]
     order = _column_order(path, names, model)
-    values = _numbers(path, enumerate(rows, start=2), names, max_rows)
-    if len(values) < 2:
-        raise MeasurementError(f"{path}: {len(values)} sample(s); a record needs at least 2")
-    table = np.array(values)[:, order]
+    table = _numbers(path, enumerate(rows, start=2), names, np.empty((max(lines - 1, 0), len(names))))
+    if len(table) < 2:
+        raise MeasurementError(f"{path}: {len(table)} sample(s); a record needs at least 2")
+    table = table[:, order]
     _check_times(path, table[:, 0])
     return Measurements(t=table[:, 0], load=table[:, 1], signals=table[:, 2:])
 
@@ -131,18 +134,16 @@ def _column_order(path: Path, header: list[str], model: SystemModel) -> list[int
     return [header.index(name) for name in expected]
 
 
-def _numbers(path: Path, rows: Iterable[tuple[int, list[str]]], header: list[str], max_rows: int) -> list[list[float]]:
-    """Every data row (with its line number) as floats, refusing anything that is not a finite decimal number."""
-    values: list[list[float]] = []
+def _numbers(path: Path, rows: Iterable[tuple[int, list[str]]], header: list[str], table: np.ndarray) -> np.ndarray:
+    """Every data row (with its line number) as floats into ``table`` (room for every line, at least),
+    refusing anything that is not a finite decimal number; the rows filled."""
     width = len(header)
+    count = 0
     for line, row in rows:
         if not row:
             raise MeasurementError(f"{path}: line {line} is empty; expected {width} numbers")
-        if len(values) == max_rows:
-            raise MeasurementError(f"{path}: more than {max_rows} samples, the most read; split the record")
         if len(row) != width:
             raise MeasurementError(f"{path}: line {line} has {len(row)} cells, the header {width}")
-        numbers = []
         for column, cell in enumerate(row):
             text = cell.strip()
             if not _NUMBER.fullmatch(text):
@@ -151,9 +152,9 @@ def _numbers(path: Path, rows: Iterable[tuple[int, list[str]]], header: list[str
             number = float(text)
             if not np.isfinite(number):
                 raise MeasurementError(f"{path}: line {line}, column {header[column]!r}: {text[:20]!r} overflows a float")
-            numbers.append(number)
-        values.append(numbers)
-    return values
+            table[count, column] = number
+        count += 1
+    return table[:count]
 
 
 def _check_times(path: Path, t: np.ndarray) -> None:

@@ -114,7 +114,7 @@ def test_only_regular_files_within_the_limits_are_read(tmp_path):
     size = path.stat().st_size
     with pytest.raises(MeasurementError, match=f"{size} bytes, more than the {size - 1} read"):
         read_measurements(path, MODEL, max_bytes=size - 1)
-    with pytest.raises(MeasurementError, match="more than 7 samples"):
+    with pytest.raises(MeasurementError, match="8 lines after the header, more than the 7 samples read"):
         read_measurements(path, MODEL, max_rows=7)
     assert len(read_measurements(path, MODEL, max_bytes=size, max_rows=8).t) == 8
 
