@@ -144,7 +144,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth."""
     import numpy as np
 
-    from ea_gym.measurements import read_measurements
+    from ea_gym.measurements import noise_estimate, read_measurements
     from ea_gym.model_files import load_system
     from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_measurements
     from ea_gym.reporting import write_phm_outputs
@@ -158,9 +158,15 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     rng = np.random.default_rng(args.seed)
     chain = build_chain(model, config, classifier_for(model, rng, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)
+    estimate = noise_estimate(measurements, chain.step_samples)
+    noise_line = (f"The record's sensor noise looks like {estimate:.2%} of the signals' RMS "
+                  f"(ea_gym.measurements.noise_estimate); the detection thresholds are calibrated for {noise:.2%} (--noise).")
+    print(noise_line)
+    if estimate > 1.5 * noise + 0.002:
+        print(f"ea-gym phm: warning: --noise {noise:g} is likely too low for this record: alarms may be false", file=sys.stderr)
     start = f"Times are seconds since the record's first sample (t = {measurements.t[0]:g} s in {args.measurements})."
     results = write_phm_outputs(
-        Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=[start],
+        Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=[start, noise_line],
         measurements=str(args.measurements),
     )
     _print_outcome(results, args.out)
@@ -253,7 +259,8 @@ def _add_phm(commands: Subcommands) -> None:
         help=("with --measurements: the sensors' noise std as a fraction of each signal's RMS over a 1 s step "
               "(0.01 = 1 %%), which the detection thresholds are calibrated for (default: PHMConfig's, 0, "
               "noise-free). Take it from a fault-free stretch of the record: the std of a signal minus its "
-              "smoothed self, over the signal's RMS (or the sensor's data sheet). Too low raises alarms on a "
+              "smoothed self, over the signal's RMS (or the sensor's data sheet); the command prints such an "
+              "estimate from the record and warns when --noise looks too low. Too low raises alarms on a "
               "healthy machine; too high detects faults later."),
     )
     phm.add_argument(

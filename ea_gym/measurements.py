@@ -27,6 +27,7 @@ import numpy as np
 
 from ea_gym.files import write_atomic
 from ea_gym.models import SystemModel
+from ea_gym.numerics import TINY
 
 #: the largest CSV read (bytes): about 6 hours at 100 Hz of a model with four storage elements
 MAX_BYTES = 256 * 2**20
@@ -172,6 +173,32 @@ def _check_times(path: Path, t: np.ndarray) -> None:
             f"{path}: line {k + 2}: t = {t[k]:.9g} s is {step[k - 1]:.6g} s after the line before, not the "
             f"sampling period {period:.6g} s: t must be uniformly sampled (a gap or jitter in the record)"
         )
+
+
+def noise_estimate(measurements: Measurements, step: int, window: int = 21, order: int = 3) -> float:
+    """The sensors' noise in the record as ``PHMConfig.noise`` reads it: a std, as a fraction of each
+    signal's RMS over a step of ``step`` samples (the chain's 1 s).
+
+    Per signal: the residual of a Savitzky-Golay smoother (``window`` samples, polynomial ``order``),
+    its std over each step divided by sqrt(1 - c0) (c0, the smoother's centre coefficient: the share of
+    white noise it keeps) and by the signal's RMS over the step; the median over the steps. The least of
+    the signals' estimates: a fast signal's own dynamics pass into its residual (a DC motor's current
+    under a 5 Hz random load reads 7 % without noise), a slow one's do not. Measured on simulated
+    records: within 2 % of the true 0.5, 1 and 3 % on spring_mass_damper and two_mass_chain; 0.99 % and
+    1.13 % at 1 % on dc_motor and rlc_circuit under a 5 Hz random load, 0.07 % and 0.48 % without noise.
+    """
+    from scipy.signal import savgol_coeffs, savgol_filter
+
+    signals = measurements.signals
+    if len(signals) < max(window, step):
+        raise ValueError(f"noise_estimate: {len(signals)} samples, fewer than a step ({step}) or the smoother's window ({window})")
+    kept = 1.0 - savgol_coeffs(window, order)[window // 2]
+    residual = signals - savgol_filter(signals, window, order, axis=0)
+    steps = len(signals) // step
+    shape = (steps, step, signals.shape[1])
+    noise = residual[: steps * step].reshape(shape).std(axis=1) / np.sqrt(kept)
+    rms = np.sqrt(np.mean(signals[: steps * step].reshape(shape) ** 2, axis=1))
+    return float(np.min(np.median(noise / np.maximum(rms, TINY), axis=0)))
 
 
 def write_measurements(path: str | os.PathLike[str], model: SystemModel, measurements: Measurements) -> Path:

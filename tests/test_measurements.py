@@ -2,6 +2,7 @@
 (any chunking, the same statuses as the whole record), and ``ea-gym phm --measurements`` end to end."""
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 from ea_gym.cli import main
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
-from ea_gym.measurements import MeasurementError, Measurements, read_measurements, write_measurements
+from ea_gym.measurements import MeasurementError, Measurements, noise_estimate, read_measurements, write_measurements
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import DetectorConfig, PHMChain, PHMConfig, calibrate_thresholds, run_signals
 from ea_gym.phm.harness import StreamingChain, fitted_initial_state, nominal_reference, run_measurements, scenario_measurements
@@ -117,6 +118,12 @@ def test_only_regular_files_within_the_limits_are_read(tmp_path):
     with pytest.raises(MeasurementError, match="8 lines after the header, more than the 7 samples read"):
         read_measurements(path, MODEL, max_rows=7)
     assert len(read_measurements(path, MODEL, max_bytes=size, max_rows=8).t) == 8
+
+
+@pytest.mark.parametrize("noise", [0.0, 0.005, 0.01, 0.03])
+def test_noise_estimate_reads_the_sensor_noise_of_a_record(noise):
+    record = scenario_measurements(load_scenario(dict(SCENARIO, duration=20.0, sensors={"noise": noise, "seed": 3})), np.random.default_rng(0))
+    assert noise_estimate(record, 100) == pytest.approx(noise, abs=0.03 * noise + 2e-4)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -306,6 +313,19 @@ def test_phm_options_that_do_not_go_together(tmp_path, capsys, args, fragment):
     assert main(["phm", *args, "--out", str(tmp_path / "out")]) == 2
     assert fragment in capsys.readouterr().err
     assert not (tmp_path / "out").exists()
+
+
+def test_phm_measurements_prints_the_records_noise_and_warns_when_noise_is_left_too_low(tmp_path, capsys):
+    scenario = load_scenario(dict(HEALTHY, duration=8.0))
+    record = scenario_measurements(scenario, np.random.default_rng(0))
+    csv = write_measurements(tmp_path / "m.csv", MODEL, record)
+    assert main(["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--out", str(tmp_path / "out")]) == 0
+    captured = capsys.readouterr()
+    estimate = re.search(r"The record's sensor noise looks like ([0-9.]+)% of the signals' RMS", captured.out)
+    assert estimate is not None and 0.9 < float(estimate.group(1)) < 1.1  # the record's 1 %
+    assert "calibrated for 0.00% (--noise)" in captured.out
+    assert "ea-gym phm: warning: --noise 0 is likely too low for this record" in captured.err
+    assert estimate.group(0) in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_phm_help_says_how_to_choose_the_noise(capsys):
