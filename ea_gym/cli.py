@@ -72,8 +72,8 @@ def _phm(args: argparse.Namespace) -> int:
         raise ValueError("give a SCENARIO to simulate or --measurements DATA.csv (with --system), one of them")
     if args.measurements is not None:
         return _phm_measurements(args)
-    if args.noise is not None:
-        raise ValueError("--noise goes with --measurements; a scenario names its sensor noise")
+    if args.noise is not None or args.seed is not None:
+        raise ValueError(f"{'--noise' if args.noise is not None else '--seed'} goes with --measurements; a scenario names its sensor noise and seed")
     import numpy as np
 
     from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_scenario
@@ -155,7 +155,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     measurements = read_measurements(args.measurements, model)
     noise = PHMConfig().noise if args.noise is None else args.noise
     config = PHMConfig(sample_rate=measurements.sample_rate, noise=noise)
-    rng = np.random.default_rng(args.seed)
+    rng = np.random.default_rng(0 if args.seed is None else args.seed)
     chain = build_chain(model, config, classifier_for(model, rng, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)
     estimate = noise_estimate(measurements, chain.step_samples)
@@ -264,7 +264,7 @@ def _add_phm(commands: Subcommands) -> None:
               "healthy machine; too high detects faults later."),
     )
     phm.add_argument(
-        "--seed", type=int, default=0,
+        "--seed", type=int, default=None,
         help="with --measurements: seed of the threshold calibration (and of a network trained on the spot) (default 0)",
     )
     phm.set_defaults(run=_phm)

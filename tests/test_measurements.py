@@ -306,6 +306,8 @@ def test_phm_measurements_errors_exit_2_in_one_line_writing_nothing(tmp_path, ca
         (["--measurements", "x.csv"], "--measurements needs --system MODEL"),
         ([], "give a SCENARIO to simulate or --measurements DATA.csv"),
         (["s.json", "--measurements", "x.csv", "--system", "spring_mass_damper"], "one of them"),
+        (["s.json", "--noise", "0.01"], "--noise goes with --measurements"),
+        (["s.json", "--seed", "3"], "--seed goes with --measurements"),
         (["--system", "nonsense", "--measurements", "x.csv"], "unknown system 'nonsense'"),
     ],
 )
