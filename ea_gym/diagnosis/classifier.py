@@ -1,22 +1,31 @@
 """The fault-isolation network: a small torch MLP over frame features, with its own standardisation.
 
-Saved as a plain dict of tensors and strings and loaded with ``torch.load(..., weights_only=True)``,
-so a shipped file cannot run code.
+Saved as safetensors (the weights and the standardisation as float64 arrays, classes, variant and layer
+widths in its metadata) and read with ``safetensors.numpy``, so that a file cannot run code and loading
+needs no torch: torch is imported when the network first runs (a chain only runs it after an alarm).
+Files written by ``torch.save`` (a zip of tensors) are read with ``torch.load(..., weights_only=True)``.
 """
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
-from torch import nn
 
 from ea_gym.files import write_atomic
 from ea_gym.threads import single_threaded_torch
+
+if TYPE_CHECKING:
+    import torch
+    from torch import nn
+
+#: the first bytes of a zip archive, the container of ``torch.save``
+_ZIP_MAGIC = b"PK\x03\x04"
 
 
 @dataclass(frozen=True)
@@ -32,6 +41,8 @@ class TrainingConfig:
 def _network(n_features: int, hidden: Sequence[int], n_classes: int, seed: int | None = None) -> nn.Sequential:
     """The MLP, its initial weights drawn from ``seed`` (None: any, for weights loaded next) without
     touching torch's global random state."""
+    import torch
+
     with torch.random.fork_rng(devices=[]):
         if seed is not None:
             torch.manual_seed(seed)
@@ -39,6 +50,8 @@ def _network(n_features: int, hidden: Sequence[int], n_classes: int, seed: int |
 
 
 def _layers(n_features: int, hidden: Sequence[int], n_classes: int) -> nn.Sequential:
+    from torch import nn
+
     layers: list[nn.Module] = []
     width = n_features
     for size in hidden:
@@ -62,15 +75,31 @@ class FaultClassifier:
         self.classes = tuple(classes)
         self.variant = variant
         self.hidden = tuple(hidden)
-        self.network = _network(n_features, self.hidden, len(self.classes))
         self.mean = np.zeros(n_features)
         self.scale = np.ones(n_features)
+        # the weights as read from a file, until the network is built from them
+        self._weights: dict[str, np.ndarray] | None = None
+        self._network: nn.Sequential | None = None
 
     @property
     def n_features(self) -> int:
         return len(self.mean)
 
+    @property
+    def network(self) -> nn.Sequential:
+        """The torch network, built on first use (with the weights read from a file, if any)."""
+        if self._network is None:
+            import torch
+
+            self._network = _network(self.n_features, self.hidden, len(self.classes))
+            if self._weights is not None:
+                self._network.load_state_dict({name: torch.from_numpy(value) for name, value in self._weights.items()})
+                self._weights = None
+        return self._network
+
     def _inputs(self, features: np.ndarray) -> torch.Tensor:
+        import torch
+
         features = np.asarray(features, dtype=float)
         if features.ndim != 2 or features.shape[1] != self.n_features:
             raise ValueError(f"features must have shape (n, {self.n_features}), got {features.shape}")
@@ -98,7 +127,11 @@ class FaultClassifier:
         rng: np.random.Generator,
         config: TrainingConfig,
     ) -> dict[str, float]:
-        self.network = _network(features.shape[1], config.hidden, len(self.classes), seed=int(rng.integers(2**31)))
+        import torch
+        from torch import nn
+
+        self._network = _network(features.shape[1], config.hidden, len(self.classes), seed=int(rng.integers(2**31)))
+        self._weights = None
         self.hidden = config.hidden
         self.mean = features.mean(axis=0)
         self.scale = np.where(features.std(axis=0) > 0, features.std(axis=0), 1.0)
@@ -122,27 +155,54 @@ class FaultClassifier:
 
     def predict_proba(self, features: np.ndarray) -> np.ndarray:
         """Class probabilities, (n, n_classes)."""
+        import torch
+
         with torch.no_grad():
             return torch.softmax(self.network(self._inputs(features)), dim=1).numpy()
 
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write weights, standardisation and metadata (atomically)."""
-        payload = {
-            "state": self.network.state_dict(),
-            "mean": torch.from_numpy(self.mean),
-            "scale": torch.from_numpy(self.scale),
-            "classes": list(self.classes),
-            "variant": self.variant,
-            "hidden": list(self.hidden),
-        }
-        return write_atomic(path, lambda tmp: torch.save(payload, tmp))
+        """Write weights, standardisation and metadata as safetensors (atomically)."""
+        from safetensors.numpy import save
+
+        tensors = {f"network.{name}": value.detach().numpy() for name, value in self.network.state_dict().items()}
+        tensors |= {"mean": self.mean, "scale": self.scale}
+        metadata = {"classes": json.dumps(list(self.classes)), "variant": self.variant, "hidden": json.dumps(list(self.hidden))}
+        data = save(tensors, metadata=metadata)
+        return write_atomic(path, lambda tmp: Path(tmp).write_bytes(data))
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> FaultClassifier:
-        """Read a file written by ``save`` without unpickling arbitrary objects."""
+        """Read a file written by ``save`` (or by ``torch.save`` before) without unpickling anything.
+
+        Raises:
+            ValueError: not such a file (the message names it and what is wrong).
+        """
+        with open(path, "rb") as file:
+            zipped = file.read(len(_ZIP_MAGIC)) == _ZIP_MAGIC
+        try:
+            return cls._load_torch(path) if zipped else cls._load_safetensors(path)
+        except (KeyError, TypeError, ValueError, RuntimeError, OSError, json.JSONDecodeError) as error:
+            raise ValueError(f"{os.fspath(path)}: not an isolation network ({type(error).__name__}: {error})") from None
+
+    @classmethod
+    def _load_safetensors(cls, path: str | os.PathLike[str]) -> FaultClassifier:
+        from safetensors import safe_open
+
+        with safe_open(os.fspath(path), framework="numpy") as file:
+            metadata = file.metadata() or {}
+            tensors = {name: file.get_tensor(name) for name in file.keys()}
+        classifier = cls(json.loads(metadata["classes"]), metadata["variant"], len(tensors["mean"]), json.loads(metadata["hidden"]))
+        classifier.mean, classifier.scale = tensors.pop("mean"), tensors.pop("scale")
+        classifier._weights = {name.removeprefix("network."): value for name, value in tensors.items()}
+        return classifier
+
+    @classmethod
+    def _load_torch(cls, path: str | os.PathLike[str]) -> FaultClassifier:
+        import torch
+
         payload = torch.load(path, weights_only=True)
-        model = cls(payload["classes"], payload["variant"], len(payload["mean"]), payload["hidden"])
-        model.network.load_state_dict(payload["state"])
-        model.mean = payload["mean"].numpy()
-        model.scale = payload["scale"].numpy()
-        return model
+        classifier = cls(payload["classes"], payload["variant"], len(payload["mean"]), payload["hidden"])
+        classifier.network.load_state_dict(payload["state"])
+        classifier.mean = payload["mean"].numpy()
+        classifier.scale = payload["scale"].numpy()
+        return classifier

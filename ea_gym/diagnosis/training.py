@@ -6,7 +6,7 @@ runs (split 0), keeping the epoch with the best accuracy on the validation runs 
 every variant on the same held-out test runs (split 2) with :func:`evaluate_isolation`.
 
 The networks trained by ``experiments/train_isolation.py`` ship inside the package as
-``ea_gym/data/{model}_{variant}.pt``; :func:`load_shipped_classifier` reads them.
+``ea_gym/data/{model}_{variant}.safetensors``; :func:`load_shipped_classifier` reads them.
 
 Populations of the evaluation (test frames of one noise level):
 
@@ -243,8 +243,8 @@ def train_isolation(
 
 
 def shipped_classifier_path(model_name: str, variant: str = "strong") -> pathlib.Path:
-    """Where the package keeps the trained classifier of a model and variant: ``ea_gym/data/{model}_{variant}.pt``."""
-    return pathlib.Path(str(importlib.resources.files("ea_gym") / "data" / f"{model_name}_{variant}.pt"))
+    """Where the package keeps the trained classifier of a model and variant: ``ea_gym/data/{model}_{variant}.safetensors``."""
+    return pathlib.Path(str(importlib.resources.files("ea_gym") / "data" / f"{model_name}_{variant}.safetensors"))
 
 
 def load_shipped_classifier(model_name: str, variant: str = "strong") -> FaultClassifier:

@@ -25,22 +25,8 @@ from ea_gym.env.infos import COST_ITEMS, StepInfo
 from ea_gym.env.observations import Observation, Observer, OracleTruth
 from ea_gym.env.operation import Degradation, Operation
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, calibrate_thresholds, classifier_for
+from ea_gym.phm import PHMChain, classifier_for, thresholds_for
 from ea_gym.threads import single_threaded_blas
-
-_THRESHOLDS: dict[tuple, np.ndarray] = {}
-
-
-def _calibrated_thresholds(model: SystemModel, config: PHMConfig, seed: int) -> np.ndarray:
-    """Detection thresholds, calibrated once per process for a model, chain settings and seed.
-
-    The calibration is deterministic; without the cache, every one of a thousand single environments
-    (in a SyncVectorEnv, say) would repeat it.
-    """
-    key = (model.name, model.parameter_vector().tobytes(), tuple(sorted(model.safe_limits.items())), config, seed)
-    if key not in _THRESHOLDS:
-        _THRESHOLDS[key] = calibrate_thresholds(model, config, np.random.default_rng(seed))
-    return _THRESHOLDS[key].copy()
 
 
 @dataclass(frozen=True)
@@ -305,6 +291,7 @@ def _supervision(
         return None, Monitor(model, 1.0 / config.sample_rate, phm_config.monitor, n_systems)
     if classifier is None:
         classifier = classifier_for(model, np.random.default_rng(calibration_seed))
-    thresholds = _calibrated_thresholds(model, phm_config, calibration_seed)
+    # the same thresholds for every environment of a model and settings: shipped, cached or calibrated once
+    thresholds = thresholds_for(model, phm_config, np.random.default_rng(calibration_seed))
     chain = PHMChain(model, classifier, thresholds, phm_config, n_systems)
     return chain, chain.monitor

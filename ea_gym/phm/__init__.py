@@ -6,7 +6,8 @@ inversion of :mod:`~ea_gym.phm.inversion`, the tracking filters of :mod:`~ea_gym
 :mod:`~ea_gym.phm.estimators` pairs each estimator kind
 with its prognosis) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
 :mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
-runs scenarios and recorded signals through a chain (whole, or streamed as they arrive: ``StreamingChain``).
+runs scenarios and recorded signals through a chain (whole, or streamed as they arrive: ``StreamingChain``);
+:mod:`~ea_gym.phm.thresholds` keeps the detection thresholds computed once.
 """
 
 from ea_gym.phm.chain import HealthStatus, PHMChain
@@ -42,6 +43,7 @@ from ea_gym.phm.prognosis import (
     drift_end_of_life,
     predict_end_of_life,
 )
+from ea_gym.phm.thresholds import thresholds_for
 from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 
 __all__ = [
@@ -81,4 +83,5 @@ __all__ = [
     "run_scenario",
     "run_signals",
     "scenario_measurements",
+    "thresholds_for",
 ]

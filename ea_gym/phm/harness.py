@@ -18,7 +18,7 @@ from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.chain import HealthStatus, PHMChain
 from ea_gym.phm.config import PHMConfig
-from ea_gym.phm.detection import calibrate_thresholds
+from ea_gym.phm.thresholds import thresholds_for
 from ea_gym.plant import Trajectory, run_model
 from ea_gym.scenario import Scenario
 from ea_gym.sensors import add_sensor_noise, measure
@@ -309,8 +309,9 @@ def run_measurements(chain: PHMChain, measurements: Measurements, progress: Prog
 def build_chain(
     model: SystemModel, config: PHMConfig, classifier: FaultClassifier, rng: np.random.Generator, n_systems: int = 1
 ) -> PHMChain:
-    """A chain for ``model`` with its detection thresholds calibrated at ``config.noise``."""
-    return PHMChain(model, classifier, calibrate_thresholds(model, config, rng), config, n_systems)
+    """A chain for ``model`` with its detection thresholds calibrated at ``config.noise`` (or read from the cache: see
+    :func:`~ea_gym.phm.thresholds.thresholds_for`)."""
+    return PHMChain(model, classifier, thresholds_for(model, config, rng), config, n_systems)
 
 
 def classifier_for(model: SystemModel, rng: np.random.Generator, path: str | None = None) -> FaultClassifier:
