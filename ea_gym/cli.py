@@ -83,7 +83,7 @@ def _phm(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario, args.system)
     rng = np.random.default_rng(scenario.sensor_seed)
     model = scenario.model
-    classifier = classifier_for(model, rng, args.classifier)
+    classifier = classifier_for(model, args.classifier)
     config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
     chain = build_chain(model, config, classifier, rng)
     run = run_scenario(scenario, chain, rng, progress=_progress)
@@ -156,7 +156,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     noise = PHMConfig().noise if args.noise is None else args.noise
     config = PHMConfig(sample_rate=measurements.sample_rate, noise=noise)
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
-    chain = build_chain(model, config, classifier_for(model, rng, args.classifier), rng)
+    chain = build_chain(model, config, classifier_for(model, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)
     estimate = noise_estimate(measurements, chain.step_samples)
     noise_line = (f"The record's sensor noise looks like {estimate:.2%} of the signals' RMS "
@@ -176,6 +176,22 @@ def _phm_measurements(args: argparse.Namespace) -> int:
 def _print_outcome(results: dict, out: str) -> None:
     isolated = results["isolated_parameter"]
     print(f"detection at {results['detection_time']} s, isolated parameter {isolated}; wrote {out}/results.json and report.md")
+
+
+def _train_isolation(args: argparse.Namespace) -> int:
+    from ea_gym.diagnosis.training import cached_isolation_path, isolation_network, shipped_classifier_path
+    from ea_gym.model_files import load_system
+
+    model = load_system(args.system)
+    cached = cached_isolation_path(model)
+    had = cached.is_file()
+    classifier = isolation_network(model)
+    if cached.is_file():  # the package ships none for this model
+        where, state = cached, "already cached" if had else "trained and cached"
+    else:
+        where, state = shipped_classifier_path(model.name), "shipped with the package"
+    print(f"isolation network for {model.name} (classes {', '.join(classifier.classes)}): {state} at {where}")
+    return 0
 
 
 def _reproduce(args: argparse.Namespace) -> int:
@@ -199,6 +215,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_phm(commands)
     _add_reproduce(commands)
     _add_models(commands)
+    _add_train_isolation(commands)
     for entry in entry_points(group=COMMAND_GROUP):
         entry.load()(commands)
     return parser
@@ -251,7 +268,7 @@ def _add_phm(commands: Subcommands) -> None:
     phm.add_argument("--out", required=True, metavar="DIR", help="directory for results.json, report.md and figures (created)")
     phm.add_argument(
         "--classifier", metavar="PATH", default=None,
-        help="isolation network file (default: the one shipped for the system; trained on the spot if there is none)",
+        help="isolation network file (default: the one shipped for the system, else the cached one, else one trained now and cached)",
     )
     phm.add_argument("--measurements", metavar="DATA.csv", help="run the chain on this recorded CSV instead of a scenario")
     phm.add_argument(
@@ -265,7 +282,7 @@ def _add_phm(commands: Subcommands) -> None:
     )
     phm.add_argument(
         "--seed", type=int, default=None,
-        help="with --measurements: seed of the threshold calibration (and of a network trained on the spot) (default 0)",
+        help="with --measurements: seed of the threshold calibration (default 0)",
     )
     phm.set_defaults(run=_phm)
 
@@ -312,6 +329,20 @@ def _add_models(commands: Subcommands) -> None:
     )
     model.add_argument("file", help="model file (.yaml, .yml or .json)")
     model.set_defaults(run=_model)
+def _add_train_isolation(commands: Subcommands) -> None:
+    train = commands.add_parser(
+        "train-isolation",
+        help="train a system's isolation network ahead of time (it is cached for every later run)",
+        description=(
+            "Simulate the system's fault database and train its isolation network (about a minute), unless the "
+            "package ships one for it or the cache already holds one. The cache is the user's cache directory, "
+            "or $EA_GYM_CACHE_DIR; environments and `ea-gym phm` read the network from there."
+        ),
+    )
+    train.add_argument(
+        "--system", required=True, metavar="MODEL", help="the system: a built-in name (ea-gym models) or a model file (.yaml, .yml, .json)"
+    )
+    train.set_defaults(run=_train_isolation)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

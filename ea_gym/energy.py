@@ -13,7 +13,6 @@ from dataclasses import dataclass
 from typing import Literal, TypeVar, overload
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
 
 from ea_gym._kernels.activity import interval_activities
 from ea_gym.bondgraph.elements import CForm, Kind
@@ -52,6 +51,8 @@ def constitutive_power(
     compliance = 1.0 / value if CForm(c_form) is CForm.STIFFNESS else value
 
     def integrated() -> np.ndarray:
+        from scipy.integrate import cumulative_trapezoid  # a costly import, needed only without a measured integral
+
         return integral if integral is not None else cumulative_trapezoid(S, dx=sample_period, initial=0.0)
 
     def derivative() -> np.ndarray:

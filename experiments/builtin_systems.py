@@ -85,7 +85,7 @@ def run_system(system: str, estimator: str, runs: int, duration: float, seed: in
     rng = np.random.default_rng(seed)
     rows = plan(model, runs, rng)
     config = PHMConfig(noise=NOISE, estimator_kind=estimator)
-    chain = build_chain(model, config, classifier_for(model, rng), rng, n_systems=len(rows))
+    chain = build_chain(model, config, classifier_for(model), rng, n_systems=len(rows))
     t = np.arange(int(round(duration * config.sample_rate)) + 1) / config.sample_rate
     loads = draw_loads(model, len(rows), rng)
     ramps = [ramp(model, parameter, limit, duration) for parameter, limit in rows]

@@ -600,7 +600,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     for name, scenario in scenarios.items():
         assert scenario.fault is not None
         log(f"{name}:")
-        classifier = classifier_for(scenario.model, np.random.default_rng(scenario.sensor_seed))
+        classifier = classifier_for(scenario.model)
         chains = {estimator_label(e): build_chain(scenario.model, chain_config(scenario, e), classifier, np.random.default_rng(scenario.sensor_seed))
                   for e in estimators}
         runs = [run_seed(with_seed(scenario, seed), chains, settings, log) for seed in args.seeds]

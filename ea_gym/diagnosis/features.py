@@ -17,7 +17,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import find_peaks, stft
 
 from ea_gym.numerics import TINY
 
@@ -55,6 +54,8 @@ class Frame:
 
 def residual_spectrogram(residual: np.ndarray, sub_window: float, frame: int, hop: int) -> tuple[np.ndarray, ...]:
     """Time-frequency map of an EA residual series (Fig 9): frequencies (Hz), segment times (s), |STFT|."""
+    from scipy.signal import stft  # scipy.signal takes most of a second to import: only once a frame is classified
+
     frequencies, times, Z = stft(
         residual, fs=1.0 / sub_window, nperseg=frame, noverlap=frame - hop, boundary=None, padded=False, detrend="constant"
     )
@@ -77,6 +78,8 @@ def spectral_peaks(
     Returns:
         (N, 2 N_PEAKS): [f_1, a_1, f_2, a_2, ...], largest first.
     """
+    from scipy.signal import find_peaks
+
     frequencies, _, magnitude = residual_spectrogram(residual, sub_window, residual.shape[-1], residual.shape[-1])
     magnitude = magnitude[..., 0] / np.maximum(scale, TINY)[:, None]
     out = np.zeros((len(residual), 2 * N_PEAKS))

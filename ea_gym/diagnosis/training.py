@@ -21,26 +21,35 @@ from __future__ import annotations
 
 import importlib.resources
 import pathlib
+import sys
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from ea_gym.cache import cache_dir, cache_key, entry_path, model_definition, warn_rebuilt
 from ea_gym.diagnosis.classifier import FaultClassifier, TrainingConfig
-from ea_gym.diagnosis.database import DatabaseConfig, FaultDatabase, build_database
+from ea_gym.diagnosis.database import DatabaseConfig, FaultDatabase, build_database, classes_of
 from ea_gym.diagnosis.features import VARIANTS
+from ea_gym.diagnosis.monitor import MonitorConfig
 from ea_gym.files import finite_or_none
 from ea_gym.metrics import confusion_matrix, per_class_accuracy
 from ea_gym.models import SystemModel
 
 __all__ = [
+    "ISOLATION_FORMAT",
+    "ISOLATION_SEED",
     "MAGNITUDE_BINS",
     "QUARTER",
     "REGENERATE_COMMAND",
     "IsolationTraining",
+    "cached_isolation_path",
     "evaluate_isolation",
+    "isolation_key",
+    "isolation_network",
     "load_shipped_classifier",
     "noise_key",
     "shipped_classifier_path",
@@ -53,6 +62,12 @@ QUARTER = 0.25
 MAGNITUDE_BINS: tuple[tuple[float, float], ...] = ((0.0, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.0))
 #: The script that (re)writes the shipped classifiers.
 REGENERATE_COMMAND = "python experiments/train_isolation.py"
+#: raise it when training computes a different network from the same inputs: every cached network is then retrained
+ISOLATION_FORMAT = 1
+#: the seed of every network trained for the cache, and of the shipped ones
+ISOLATION_SEED = 0
+#: the cache's entry kind
+_KIND = "isolation"
 
 
 @dataclass(frozen=True)
@@ -245,6 +260,69 @@ def train_isolation(
 def shipped_classifier_path(model_name: str, variant: str = "strong") -> pathlib.Path:
     """Where the package keeps the trained classifier of a model and variant: ``ea_gym/data/{model}_{variant}.safetensors``."""
     return pathlib.Path(str(importlib.resources.files("ea_gym") / "data" / f"{model_name}_{variant}.safetensors"))
+
+
+def isolation_key(model: SystemModel) -> str:
+    """The cache key of ``model``'s network: its definition, the default database, monitor and training settings, the seed."""
+    return cache_key(
+        _KIND, ISOLATION_FORMAT, model=model_definition(model), variant="strong", database=DatabaseConfig(), monitor=MonitorConfig(),
+        training=TrainingConfig(), seed=ISOLATION_SEED,
+    )
+
+
+def cached_isolation_path(model: SystemModel) -> pathlib.Path:
+    """Where the cache keeps ``model``'s network (see :mod:`ea_gym.cache`)."""
+    return entry_path(_KIND, isolation_key(model), ".safetensors")
+
+
+def _cached_network(path: pathlib.Path, classes: tuple[str, ...]) -> FaultClassifier | None:
+    """The network cached at ``path`` if it is one for ``classes`` (else None, warned)."""
+    try:
+        classifier = FaultClassifier.load(path)
+    except ValueError as error:
+        warn_rebuilt(path, str(error))
+        return None
+    if classifier.classes != classes or classifier.variant != "strong":
+        warn_rebuilt(path, f"a {classifier.variant!r} network for classes {classifier.classes}, not a 'strong' one for {classes}")
+        return None
+    return classifier
+
+
+def isolation_network(model: SystemModel) -> FaultClassifier:
+    """The "strong" isolation network of ``model``: shipped for a built-in system, else cached, else trained now and cached.
+
+    A network depends only on the model and the default settings: it is trained from
+    ``ISOLATION_SEED``, as the shipped ones were. Training (about a minute) says so on stderr, with a
+    progress bar over its stages.
+    """
+    classes = classes_of(model)
+    shipped = shipped_classifier_path(model.name)
+    if shipped.is_file():
+        classifier = FaultClassifier.load(shipped)
+        if classifier.classes == classes:
+            return classifier
+    path = cached_isolation_path(model)
+    if path.is_file():
+        cached = _cached_network(path, classes)
+        if cached is not None:
+            return cached
+    from tqdm import tqdm
+
+    print(f"no isolation network for model {model.name!r} with these settings in {cache_dir()}; training one (about a minute)...",
+          file=sys.stderr, flush=True)
+    with tqdm(total=3, desc="isolation network", unit="stage", file=sys.stderr) as bar:
+        def progress(stage: str, done: int, total: int) -> None:
+            bar.set_postfix_str(stage)
+            bar.n = done
+            bar.refresh()
+
+        trained = train_isolation(model, np.random.default_rng(ISOLATION_SEED), progress=progress, variants=("strong",))
+    classifier = trained.classifiers["strong"]
+    try:
+        classifier.save(path)
+    except OSError as error:  # a read-only home: the network is right, only not kept
+        warnings.warn(f"could not cache the isolation network: {error}", RuntimeWarning, stacklevel=2)
+    return classifier
 
 
 def load_shipped_classifier(model_name: str, variant: str = "strong") -> FaultClassifier:

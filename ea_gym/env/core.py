@@ -290,7 +290,7 @@ def _supervision(
     if config.obs_mode != "phm":
         return None, Monitor(model, 1.0 / config.sample_rate, phm_config.monitor, n_systems)
     if classifier is None:
-        classifier = classifier_for(model, np.random.default_rng(calibration_seed))
+        classifier = classifier_for(model)
     # the same thresholds for every environment of a model and settings: shipped, cached or calibrated once
     thresholds = thresholds_for(model, phm_config, np.random.default_rng(calibration_seed))
     chain = PHMChain(model, classifier, thresholds, phm_config, n_systems)

@@ -314,16 +314,9 @@ def build_chain(
     return PHMChain(model, classifier, thresholds_for(model, config, rng), config, n_systems)
 
 
-def classifier_for(model: SystemModel, rng: np.random.Generator, path: str | None = None) -> FaultClassifier:
-    """The isolation network: from ``path``, else the one shipped for the model, else trained now."""
-    from ea_gym.diagnosis.training import (
-        load_shipped_classifier,
-        shipped_classifier_path,
-        train_isolation,
-    )
+def classifier_for(model: SystemModel, path: str | None = None) -> FaultClassifier:
+    """The isolation network: from ``path``, else the one shipped for the model, else the cached one, else trained now
+    and cached (:func:`~ea_gym.diagnosis.training.isolation_network`)."""
+    from ea_gym.diagnosis.training import isolation_network
 
-    if path is not None:
-        return FaultClassifier.load(path)
-    if shipped_classifier_path(model.name).is_file():
-        return load_shipped_classifier(model.name)
-    return train_isolation(model, rng, variants=("strong",)).classifiers["strong"]
+    return FaultClassifier.load(path) if path is not None else isolation_network(model)

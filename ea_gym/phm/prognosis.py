@@ -20,7 +20,6 @@ from typing import Protocol
 
 import numpy as np
 from scipy.special import ndtri
-from scipy.stats import norm
 
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
@@ -159,7 +158,7 @@ def extrapolate(fit: TrendFit, limits: tuple[float, float], config: Extrapolatio
     if fit.values[-1] <= lower or fit.values[-1] >= upper:
         past = "lower" if fit.values[-1] <= lower else "upper"
         return EndOfLife(t_now, t_now, t_now, t_now, past, value, slope, slope_std, fit)
-    z = norm.ppf(0.5 + config.confidence / 2)
+    z = ndtri(0.5 + config.confidence / 2)
     limit: str | None
     limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)
 
