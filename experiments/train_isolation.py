@@ -13,7 +13,7 @@ What it does
        (the paper's Fig 8: largest residual peak, frequency vs amplitude, per class),
        ``confusion.png`` (confusion matrices, variants x noise levels) and
        ``accuracy_vs_magnitude.png``.
-    4. Unless ``--no-ship``, saves the networks as ``ea_gym/data/spring_mass_damper_{paper,strong}.pt``,
+    4. Unless ``--no-ship``, saves the networks as ``ea_gym/data/spring_mass_damper_{paper,strong}.safetensors``,
        the classifiers the package loads with ``ea_gym.diagnosis.training.load_shipped_classifier``.
 
 How to run (from the repository root; about a minute on a laptop)
@@ -74,7 +74,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0, help="seed of the whole run (default 0)")
     parser.add_argument("--out", type=Path, default=Path("experiments/results/isolation"), help="results folder")
-    parser.add_argument("--no-ship", action="store_true", help="do not overwrite ea_gym/data/spring_mass_damper_*.pt")
+    parser.add_argument("--no-ship", action="store_true", help="do not overwrite ea_gym/data/spring_mass_damper_*.safetensors")
     parser.add_argument("--intervals", type=int, default=db.intervals, help=f"intervals per safe range (default {db.intervals})")
     parser.add_argument("--loads", type=int, default=db.n_loads, help=f"random loads (default {db.n_loads})")
     parser.add_argument("--fault-free-runs", type=int, default=db.fault_free_runs,

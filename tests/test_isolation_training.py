@@ -112,7 +112,7 @@ def test_quarter_accuracy_well_above_chance(trained: IsolationTraining) -> None:
 def test_save_and_load_give_identical_probabilities(trained: IsolationTraining, tmp_path: Path) -> None:
     db = trained.database
     for variant, classifier in trained.classifiers.items():
-        path = classifier.save(tmp_path / f"{variant}.pt")
+        path = classifier.save(tmp_path / f"{variant}.safetensors")
         loaded = FaultClassifier.load(path)
         assert loaded.classes == classifier.classes and loaded.variant == variant
         features = db.features[variant]
@@ -131,9 +131,9 @@ def test_a_variant_is_reproducible_alone(trained: IsolationTraining) -> None:
 
 def test_shipped_classifier_path() -> None:
     path = shipped_classifier_path("spring_mass_damper")
-    assert path.name == "spring_mass_damper_strong.pt"
+    assert path.name == "spring_mass_damper_strong.safetensors"
     assert path.parent.name == "data" and path.parent.parent.name == "ea_gym"
-    assert shipped_classifier_path("rlc_circuit", "paper").name == "rlc_circuit_paper.pt"
+    assert shipped_classifier_path("rlc_circuit", "paper").name == "rlc_circuit_paper.safetensors"
 
 
 def test_unknown_model_names_the_script() -> None:

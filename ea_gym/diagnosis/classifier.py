@@ -13,6 +13,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from pickle import UnpicklingError  # what torch.load(weights_only=True) raises on a payload it refuses to run
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -177,11 +178,13 @@ class FaultClassifier:
         Raises:
             ValueError: not such a file (the message names it and what is wrong).
         """
-        with open(path, "rb") as file:
-            zipped = file.read(len(_ZIP_MAGIC)) == _ZIP_MAGIC
+        from safetensors import SafetensorError
+
         try:
+            with open(path, "rb") as file:
+                zipped = file.read(len(_ZIP_MAGIC)) == _ZIP_MAGIC
             return cls._load_torch(path) if zipped else cls._load_safetensors(path)
-        except (KeyError, TypeError, ValueError, RuntimeError, OSError, json.JSONDecodeError) as error:
+        except (KeyError, TypeError, ValueError, RuntimeError, OSError, UnpicklingError, SafetensorError) as error:
             raise ValueError(f"{os.fspath(path)}: not an isolation network ({type(error).__name__}: {error})") from None
 
     @classmethod
