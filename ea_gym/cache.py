@@ -17,13 +17,14 @@ import hashlib
 import json
 import os
 import warnings
+import zipfile
 from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ea_gym.files import write_json
+from ea_gym.files import write_atomic, write_json
 
 if TYPE_CHECKING:
     from ea_gym.models import SystemModel
@@ -36,8 +37,10 @@ __all__ = [
     "canonical",
     "entry_path",
     "model_definition",
+    "read_arrays_entry",
     "read_json_entry",
     "warn_rebuilt",
+    "write_arrays_entry",
     "write_json_entry",
 ]
 
@@ -131,3 +134,33 @@ def read_json_entry(kind: str, key: str) -> dict[str, Any] | None:
 def write_json_entry(kind: str, key: str, data: Mapping[str, Any]) -> Path:
     """Write the JSON entry of ``kind`` with ``key`` atomically; the key is recorded inside it too."""
     return write_json(entry_path(kind, key, ".json"), {"key": key, **data})
+
+
+def read_arrays_entry(kind: str, key: str) -> dict[str, np.ndarray] | None:
+    """The arrays entry (``.npz``, read with ``allow_pickle=False``) of ``kind`` with ``key``, or None if there is none
+    or it is unreadable or not this key's (warned)."""
+    path = entry_path(kind, key, ".npz")
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            arrays = {name: archive[name] for name in archive.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
+        warn_rebuilt(path, f"unreadable: {error}")
+        return None
+    if str(arrays.pop("key", "")) != key:
+        warn_rebuilt(path, "its recorded key is not its name's")
+        return None
+    return arrays
+
+
+def write_arrays_entry(kind: str, key: str, arrays: Mapping[str, np.ndarray]) -> Path:
+    """Write the arrays entry of ``kind`` with ``key`` atomically; the key is recorded inside it too."""
+
+    payload: dict[str, Any] = {"key": np.array(key), **arrays}
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as file:
+            np.savez(file, **payload)
+
+    return write_atomic(entry_path(kind, key, ".npz"), write)

@@ -171,8 +171,9 @@ def test_a_corrupt_or_pickled_network_is_rebuilt_without_running_it(tmp_path: Pa
 
 
 def test_a_fresh_start_computes_nothing_and_imports_no_torch(cache_in: Path) -> None:
-    """A new process with an empty cache: the first step of the default environment reads the shipped network and
-    thresholds (nothing written to the cache, so nothing calibrated or trained) and never imports torch."""
+    """New processes with an empty cache: the first step of the default environment reads the shipped network and
+    thresholds (no thresholds or network written to the cache: nothing calibrated or trained) and never imports torch;
+    the first process caches the smoothing filter's coefficients, so that the second does not import scipy.signal."""
     script = textwrap.dedent("""
         import sys
         import gymnasium as gym
@@ -180,8 +181,25 @@ def test_a_fresh_start_computes_nothing_and_imports_no_torch(cache_in: Path) -> 
         env = gym.make("ea_gym/SpringMassDamper-v0")
         env.reset(seed=0)
         env.step(0)
-        print("torch" in sys.modules)
+        print("torch" in sys.modules, "scipy.signal" in sys.modules)
     """)
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=os.environ, check=True)
-    assert result.stdout.strip() == "False"
-    assert not cache_in.exists()
+    runs = [subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, env=os.environ, check=True) for _ in range(2)]
+    assert runs[0].stdout.split() == ["False", "True"]
+    assert runs[1].stdout.split() == ["False", "False"]
+    assert sorted(path.name for path in cache_in.iterdir()) == ["savgol"]
+
+
+def test_cached_filter_coefficients_are_scipys(cache_in: Path) -> None:
+    from scipy.signal import savgol_filter
+
+    from ea_gym.diagnosis.smoothing import SavitzkyGolay
+
+    signal = np.random.default_rng(0).normal(size=(3, 200))
+    for _ in range(2):  # computed, then read from the cache
+        smoother = SavitzkyGolay(21, 3, 0.01)
+        assert np.allclose(smoother(signal, deriv=1), savgol_filter(signal, 21, 3, deriv=1, delta=0.01), rtol=0, atol=1e-9)
+    (entry,) = (cache_in / "savgol").glob("*.npz")
+    entry.write_bytes(b"PK\x03\x04 truncated")
+    with pytest.warns(RuntimeWarning, match="ignoring the cache entry"):
+        rebuilt = SavitzkyGolay(21, 3, 0.01)
+    assert all(np.array_equal(a, b) for a, b in zip(rebuilt.coefficients(1), smoother.coefficients(1)))

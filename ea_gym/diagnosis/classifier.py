@@ -70,16 +70,19 @@ class FaultClassifier:
         variant: the feature set it reads (see ``ea_gym.diagnosis.features``).
         n_features: feature vector length.
         hidden: hidden layer widths.
+        weights: the network's state (torch's names, float64 arrays), as read from a file; None: untrained.
     """
 
-    def __init__(self, classes: Sequence[str], variant: str, n_features: int, hidden: Sequence[int] = (64, 64)):
+    def __init__(
+        self, classes: Sequence[str], variant: str, n_features: int, hidden: Sequence[int] = (64, 64), weights: dict[str, np.ndarray] | None = None
+    ):
         self.classes = tuple(classes)
         self.variant = variant
         self.hidden = tuple(hidden)
         self.mean = np.zeros(n_features)
         self.scale = np.ones(n_features)
         # the weights as read from a file, until the network is built from them
-        self._weights: dict[str, np.ndarray] | None = None
+        self._weights = weights
         self._network: nn.Sequential | None = None
 
     @property
@@ -194,9 +197,10 @@ class FaultClassifier:
         with safe_open(os.fspath(path), framework="numpy") as file:
             metadata = file.metadata() or {}
             tensors = {name: file.get_tensor(name) for name in file.keys()}
-        classifier = cls(json.loads(metadata["classes"]), metadata["variant"], len(tensors["mean"]), json.loads(metadata["hidden"]))
-        classifier.mean, classifier.scale = tensors.pop("mean"), tensors.pop("scale")
-        classifier._weights = {name.removeprefix("network."): value for name, value in tensors.items()}
+        mean, scale = tensors.pop("mean"), tensors.pop("scale")
+        weights = {name.removeprefix("network."): value for name, value in tensors.items()}
+        classifier = cls(json.loads(metadata["classes"]), metadata["variant"], len(mean), json.loads(metadata["hidden"]), weights)
+        classifier.mean, classifier.scale = mean, scale
         return classifier
 
     @classmethod

@@ -3,7 +3,8 @@
 ``scipy.signal.savgol_filter`` with ``mode="interp"`` fits the edge polynomials row by row with a
 least-squares solve, which dominates when thousands of short rows are filtered per step. The filter is
 linear, so its edge rows are fixed matrices: they are taken once from ``savgol_filter`` itself
-applied to the identity, and the interior is a correlation with ``savgol_coeffs``. A compiled loop
+applied to the identity, and the interior is a correlation with ``savgol_coeffs`` (both kept in the
+cache of :mod:`ea_gym.cache`, so that a later process need not import ``scipy.signal``). A compiled loop
 applies both row by row. The result equals ``savgol_filter(..., mode="interp")`` to round-off.
 
 ``filter_lanes`` runs many signals side by side and gets the interior from running polynomial
@@ -18,11 +19,39 @@ their moments' round-off grows past 1e-10.
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
+import scipy
 from scipy.special import comb
 
 from ea_gym._kernels.smoothing import MOMENTS, filter_rows
+from ea_gym.cache import cache_key, read_arrays_entry, write_arrays_entry
+
+#: the cache's entry kind of the coefficients, and its format
+_KIND, _FORMAT = "savgol", 1
+
+
+def _savgol_coefficients(window: int, polyorder: int, sample_period: float) -> dict[str, np.ndarray]:
+    """scipy's filter as matrices, interior{d}, head{d}, tail{d} for the smoother (d = 0) and the derivative (1): read from
+    the cache (:mod:`ea_gym.cache`), else computed once (importing scipy.signal takes about a second) and cached."""
+    key = cache_key(_KIND, _FORMAT, window=window, polyorder=polyorder, sample_period=sample_period, scipy=scipy.__version__)
+    cached = read_arrays_entry(_KIND, key)
+    if cached is not None and all(f"{part}{d}" in cached for part in ("interior", "head", "tail") for d in (0, 1)):
+        return cached
+    from scipy.signal import savgol_coeffs, savgol_filter
+
+    half, identity, coefficients = window // 2, np.eye(window), {}
+    for deriv in (0, 1):
+        # use="dot" gives the coefficients in signal order, as the correlation takes them
+        coefficients[f"interior{deriv}"] = savgol_coeffs(window, polyorder, deriv=deriv, delta=sample_period, use="dot")
+        edges = savgol_filter(identity, window, polyorder, deriv=deriv, delta=sample_period, axis=0)
+        coefficients[f"head{deriv}"], coefficients[f"tail{deriv}"] = np.ascontiguousarray(edges[:half]), np.ascontiguousarray(edges[window - half :])
+    try:
+        write_arrays_entry(_KIND, key, coefficients)
+    except OSError as error:  # a read-only home: the coefficients are right, only not kept
+        warnings.warn(f"could not cache the Savitzky-Golay coefficients: {error}", RuntimeWarning, stacklevel=2)
+    return coefficients
 
 
 class SavitzkyGolay:
@@ -55,12 +84,9 @@ class SavitzkyGolay:
             (-1.0) ** orders,
             (1.0 + step) ** orders,
         )
-        identity = np.eye(window)
+        coefficients = _savgol_coefficients(window, polyorder, sample_period)
         for deriv in (0, 1):
-            # use="dot" gives the coefficients in signal order, as the correlation takes them
-            interior = savgol_coeffs(window, polyorder, deriv=deriv, delta=sample_period, use="dot")
-            edges = savgol_filter(identity, window, polyorder, deriv=deriv, delta=sample_period, axis=0)
-            head, tail = np.ascontiguousarray(edges[: self.half]), np.ascontiguousarray(edges[window - self.half :])
+            interior, head, tail = (coefficients[f"{part}{deriv}"] for part in ("interior", "head", "tail"))
             self._coefficients[deriv] = (interior, head, tail)
             # exact up to polyorder 3: the interior coefficients are a polynomial of order polyorder in
             # the offset, and the edge outputs depend on their window through its moments only
