@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -56,25 +57,32 @@ print(json.dumps({"import": imported - start, "make": made - imported, "reset": 
 """
 
 
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
 def measure(env_id: str, kwargs: dict, cache: Path, numba_cache: Path | None = None) -> dict[str, float]:
-    """One fresh process: the stages' seconds and the process's whole wall time ("total")."""
+    """One fresh process: the stages' seconds, the process's whole wall time ("total") and its CPU time, user + system
+    ("cpu": what the wall time would be on an idle machine, the start being single-threaded, less waits on the disk)."""
     environment = {**os.environ, "EA_GYM_CACHE_DIR": str(cache), "PYTHONPATH": str(ROOT)}
     if numba_cache is not None:
         environment["NUMBA_CACHE_DIR"] = str(numba_cache)
-    start = time.perf_counter()
+    start, cpu = time.perf_counter(), _children_cpu()
     result = subprocess.run([sys.executable, "-c", CHILD, env_id, json.dumps(kwargs)], capture_output=True, text=True, env=environment)
-    total = time.perf_counter() - start
+    total, cpu = time.perf_counter() - start, _children_cpu() - cpu
     if result.returncode != 0:
         raise RuntimeError(f"{env_id} {kwargs}: {result.stderr.strip().splitlines()[-1]}")
-    return {**json.loads(result.stdout.strip().splitlines()[-1]), "total": total}
+    return {**json.loads(result.stdout.strip().splitlines()[-1]), "total": total, "cpu": cpu}
 
 
 def summary(label: str, runs: list[dict[str, float]]) -> str:
-    """One table row: the median of every stage, and the median, min and max total."""
+    """One table row: the median of every stage, the median, min and max total, the median CPU time."""
     totals = [run["total"] for run in runs]
     stages = " ".join(f"{statistics.median(run[s] for run in runs):6.2f}" for s in STAGES)
+    cpu = statistics.median(run["cpu"] for run in runs)
     torch = "yes" if any(run["torch"] for run in runs) else "no"
-    return f"{label:<26} {len(runs):>2} {stages}  {statistics.median(totals):6.2f} {min(totals):6.2f} {max(totals):6.2f}  {torch}"
+    return f"{label:<26} {len(runs):>2} {stages}  {statistics.median(totals):6.2f} {min(totals):6.2f} {max(totals):6.2f} {cpu:6.2f}  {torch}"
 
 
 def main() -> int:
@@ -85,7 +93,7 @@ def main() -> int:
     if args.repeats < 1:
         parser.error("--repeats: expected a positive integer")
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
-    print(f"{'case, cache':<26} {'n':>2} {'import':>6} {'make':>6} {'reset':>6} {'step':>6}  {'total':>6} {'min':>6} {'max':>6}  torch")
+    print(f"{'case, cache':<26} {'n':>2} {'import':>6} {'make':>6} {'reset':>6} {'step':>6}  {'total':>6} {'min':>6} {'max':>6} {'cpu':>6}  torch")
     with tempfile.TemporaryDirectory(prefix="ea-gym-bench-") as scratch:
         for name, (env_id, kwargs) in CASES.items():
             measure(env_id, kwargs, Path(scratch) / "warm-up")  # numba's cache and the OS's file cache, as a user's second start

@@ -19,11 +19,11 @@ their moments' round-off grows past 1e-10.
 
 from __future__ import annotations
 
+import math
 import warnings
 
 import numpy as np
 import scipy
-from scipy.special import comb
 
 from ea_gym._kernels.smoothing import MOMENTS, filter_rows
 from ea_gym.cache import cache_key, read_arrays_entry, write_arrays_entry
@@ -80,7 +80,7 @@ class SavitzkyGolay:
         below = orders[:, None] - orders[None, :]  # binomial re-centring: order i takes the orders j <= i
         self._moments = (
             powers,
-            comb(orders[:, None], orders[None, :]) * (-step) ** np.maximum(below, 0) * (below >= 0),
+            np.array([[math.comb(i, j) for j in orders] for i in orders], dtype=float) * (-step) ** np.maximum(below, 0) * (below >= 0),
             (-1.0) ** orders,
             (1.0 + step) ** orders,
         )

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
-from scipy.special import ndtri
 
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
@@ -158,6 +157,8 @@ def extrapolate(fit: TrendFit, limits: tuple[float, float], config: Extrapolatio
     if fit.values[-1] <= lower or fit.values[-1] >= upper:
         past = "lower" if fit.values[-1] <= lower else "upper"
         return EndOfLife(t_now, t_now, t_now, t_now, past, value, slope, slope_std, fit)
+    from scipy.special import ndtri  # imported when first needed: scipy.special takes a few tenths of a second
+
     z = ndtri(0.5 + config.confidence / 2)
     limit: str | None
     limit, level, below = ("lower", lower, True) if slope < 0 else ("upper", upper, False)
@@ -207,6 +208,8 @@ def drift_end_of_life(
     Returns:
         eol, eol_low, eol_high (s), each (...,); inf where the limit is not approached (or not surely).
     """
+    from scipy.special import ndtri
+
     value, drift = np.asarray(value, dtype=float), np.asarray(drift, dtype=float)
     limits, t = np.asarray(limits, dtype=float), np.asarray(t, dtype=float)
     upward = drift >= 0
