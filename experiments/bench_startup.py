@@ -16,7 +16,7 @@ numba's compiled kernels are cached beside their sources (``cache=True``) and re
 seconds). The machine's load average is printed with the numbers: on a shared machine it moves them.
 
 How to run (from the repository root; about a minute)
-    python experiments/bench_startup.py [--repeats 5] [--numba-cold]
+    python experiments/bench_startup.py [--repeats 5] [--cases default ...] [--numba-cold]
 """
 
 from __future__ import annotations
@@ -88,6 +88,7 @@ def summary(label: str, runs: list[dict[str, float]]) -> str:
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=5, help="processes per case and cache state (default 5)")
+    parser.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES), help="the cases to measure (default all)")
     parser.add_argument("--numba-cold", action="store_true", help="also one run with numba's cache empty (slow)")
     args = parser.parse_args()
     if args.repeats < 1:
@@ -95,7 +96,8 @@ def main() -> int:
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")
     print(f"{'case, cache':<26} {'n':>2} {'import':>6} {'make':>6} {'reset':>6} {'step':>6}  {'total':>6} {'min':>6} {'max':>6} {'cpu':>6}  torch")
     with tempfile.TemporaryDirectory(prefix="ea-gym-bench-") as scratch:
-        for name, (env_id, kwargs) in CASES.items():
+        for name in args.cases:
+            env_id, kwargs = CASES[name]
             measure(env_id, kwargs, Path(scratch) / "warm-up")  # numba's cache and the OS's file cache, as a user's second start
             cold = [measure(env_id, kwargs, Path(scratch) / f"{name}-cold-{k}") for k in range(args.repeats)]
             warm_cache = Path(scratch) / f"{name}-warm"
