@@ -203,3 +203,19 @@ def test_cached_filter_coefficients_are_scipys(cache_in: Path) -> None:
     with pytest.warns(RuntimeWarning, match="ignoring the cache entry"):
         rebuilt = SavitzkyGolay(21, 3, 0.01)
     assert all(np.array_equal(a, b) for a, b in zip(rebuilt.coefficients(1), smoother.coefficients(1)))
+
+
+def test_train_isolation_command(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+    from ea_gym.cli import main
+
+    calls = []
+    monkeypatch.setattr(training, "train_isolation", lambda *args, **kwargs: calls.append(1) or _small_training(*args, **kwargs))
+    assert main(["train-isolation", "--system", "rlc_circuit"]) == 0
+    assert "shipped with the package" in capsys.readouterr().out
+    model_file = str(Path(__file__).resolve().parents[1] / "experiments" / "models" / "two_mass_chain.yaml")
+    assert main(["train-isolation", "--system", model_file]) == 0
+    assert "trained and cached" in capsys.readouterr().out
+    assert main(["train-isolation", "--system", model_file]) == 0
+    assert "already cached" in capsys.readouterr().out and len(calls) == 1
+    assert main(["train-isolation", "--system", "no_such_system"]) == 2
+    assert "unknown system 'no_such_system'" in capsys.readouterr().err
