@@ -146,7 +146,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
 
     from ea_gym.measurements import noise_estimate, read_measurements
     from ea_gym.model_files import load_system
-    from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_measurements
+    from ea_gym.phm import PHMConfig, build_chain, check_duration, classifier_for, run_measurements
     from ea_gym.reporting import write_phm_outputs
 
     if args.system is None:
@@ -155,6 +155,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     measurements = read_measurements(args.measurements, model)
     noise = PHMConfig().noise if args.noise is None else args.noise
     config = PHMConfig(sample_rate=measurements.sample_rate, noise=noise)
+    check_duration(measurements, config)  # before the thresholds' calibration and the network
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
     chain = build_chain(model, config, classifier_for(model, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)

@@ -284,18 +284,24 @@ class StreamingChain:
         return status
 
 
+def check_duration(measurements: Measurements, config: PHMConfig) -> None:
+    """Refuse a record that does not last one detection window (``DetectorConfig.window``), before any
+    chain is built for it."""
+    needed = max(config.step, config.detector.window)
+    if measurements.duration < needed - 0.5 / config.sample_rate:
+        raise ValueError(
+            f"measurements: the record lasts {measurements.duration:g} s; the chain needs at least {needed:g} s "
+            f"(one detection window), i.e. {round(needed * config.sample_rate) + 1} samples at {config.sample_rate:g} Hz"
+        )
+
+
 def run_measurements(chain: PHMChain, measurements: Measurements, progress: Progress | None = None) -> ChainRun:
     """A machine's recorded ``measurements`` through ``chain`` (N = 1, at their sample rate), a step at a time.
 
     Raises:
-        ValueError: the record does not last one detection window (``DetectorConfig.window``).
+        ValueError: the record does not last one detection window (:func:`check_duration`).
     """
-    needed = max(chain.config.step, chain.config.detector.window)
-    if measurements.duration < needed - 0.5 * chain.h:
-        raise ValueError(
-            f"measurements: the record lasts {measurements.duration:g} s; the chain needs at least {needed:g} s "
-            f"(one detection window), i.e. {round(needed / chain.h) + 1} samples at {1 / chain.h:g} Hz"
-        )
+    check_duration(measurements, chain.config)
     stream = StreamingChain(chain)
     step = chain.step_samples
     starts: Iterable[int] = range(0, len(measurements.t), step)
