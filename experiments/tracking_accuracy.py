@@ -12,7 +12,7 @@ true hypothesis holds the largest log-evidence; and the time per step at N = 1 a
     python experiments/tracking_accuracy.py            # the table (evaluation seeds 0..4)
     python experiments/tracking_accuracy.py --systems  # every built-in's parameters, random loads
     python experiments/tracking_accuracy.py --wear 1e-4  # RUL under linear / Wiener / gamma wear
-    python experiments/tracking_accuracy.py --tune     # process-noise grid on the three ramps, tuning seeds 10..17
+    python experiments/tracking_accuracy.py --tune     # process-noise and prior grid on the three ramps, tuning seeds 10..49
 """
 
 from __future__ import annotations
@@ -30,7 +30,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import get_model
-from ea_gym.phm.estimation import StepSignals
+from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.phm.prognosis import DriftPrognosis, ExtrapolationConfig
 from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
@@ -88,16 +89,28 @@ def true_end_of_life(scenario: Scenario) -> tuple[float, float]:
     return onset, float(t[np.flatnonzero((values < lower) | (values > upper))[0]])
 
 
+def chain_prognosis(estimator: TrackingEstimator) -> DriftPrognosis:
+    """The chain's prognosis stage for ``estimator`` (``ea_gym.phm.estimators.tracking_stages``)."""
+    return DriftPrognosis(estimator.model, estimator.degradable, ExtrapolationConfig(), estimator.diffusion, estimator.n)
+
+
+def end_of_life(prognosis: DriftPrognosis, estimates: ParameterEstimates, j: int, t: np.ndarray) -> tuple[float, float, float]:
+    """System 0's End of Life and interval (s) with degradable parameter ``j`` the confident suspect, at ``t`` (1,)."""
+    out = prognosis.update(estimates, np.array([j + 1]), np.ones(1, dtype=bool), t)
+    return float(out.eol[0]), float(out.eol_low[0]), float(out.eol_high[0])
+
+
 def track_run(scenario: Scenario, signals: Signals, config: TrackingConfig) -> dict[str, np.ndarray]:
     """The true hypothesis's estimate, RUL and interval, and the evidence ranking, at every step end."""
     estimator = TrackingEstimator(scenario.model, scenario.sample_rate, scenario.noise, 1, config=config)
+    prognosis = chain_prognosis(estimator)
     j = estimator.degradable.index(fault_parameter(scenario))
     rows: dict[str, list] = {"value": [], "rul": [], "low": [], "high": [], "best": []}
     suspects = np.ones((1, len(estimator.degradable)), dtype=bool)
     for k in range(len(signals.t)):
         step = StepSignals(signals.measured[k], signals.load[k], signals.load_rate[k], signals.t[k : k + 1])
         est = estimator.update(step, np.ones(1, dtype=bool), suspects)
-        eol, low, high = (end[0, j] for end in estimator.end_of_life(signals.t[k : k + 1]))
+        eol, low, high = end_of_life(prognosis, est, j, signals.t[k : k + 1])
         rows["value"].append(est.value[0, j])
         rows["rul"].append(eol - signals.t[k])
         rows["low"].append(low - signals.t[k])
@@ -167,17 +180,24 @@ def speed(n_systems: int, repeats: int = 20) -> float:
     return (time.perf_counter() - start) / repeats
 
 
+#: The tuning grid: (theta_prior, drift_prior) x drift_noise x theta_noise, on the tuning seeds 10..49.
+TUNING_PRIORS = ((1e-3, 1e-4), (0.02, 1e-3))
+TUNING_DRIFT_NOISE = (3e-5, 4e-5)
+TUNING_THETA_NOISE = (3e-5, 1e-4)
+TUNING_SEEDS = range(10, 50)
+
+
 def tune() -> None:
-    """Grid over theta_noise x drift_noise on the tuning seeds 10..17 of the three ramps; prints each setting's scores."""
+    """The tuning grid on the tuning seeds of the three ramps; prints each setting's scores."""
     base = TrackingConfig()
-    for theta_noise, drift_noise in itertools.product((3e-5, 1e-4, 3e-4), (1e-5, 2e-5, 4e-5)):
-        config = replace(base, theta_noise=theta_noise, drift_noise=drift_noise)
-        results = accuracy(range(10, 18), config)
+    for (theta_prior, drift_prior), drift_noise, theta_noise in itertools.product(TUNING_PRIORS, TUNING_DRIFT_NOISE, TUNING_THETA_NOISE):
+        config = replace(base, theta_prior=theta_prior, drift_prior=drift_prior, theta_noise=theta_noise, drift_noise=drift_noise)
+        results = accuracy(TUNING_SEEDS, config)
         scores = "; ".join(
-            f"{p} {np.median(r['error']):.4f}/{np.max(r['error']):.4f} al {r['hit'].mean():.2f} cov {r['covered'].mean():.2f}"
+            f"{p} {np.median(r['error']):.4f}/{np.max(r['error']):.4f} al {r['hit'].mean():.3f} cov {r['covered'].mean():.2f}"
             for p, r in results.items()
         )
-        print(f"theta_noise {theta_noise:g} drift_noise {drift_noise:g}: {scores}", flush=True)
+        print(f"theta_prior {theta_prior:g} drift_prior {drift_prior:g} theta_noise {theta_noise:g} drift_noise {drift_noise:g}: {scores}", flush=True)
 
 
 def ramp_scenario(system: str, parameter: str | None, seed: int) -> Scenario:
@@ -260,14 +280,15 @@ def wear_table(config: TrackingConfig, runs: int = 6) -> None:
             scenario = load_scenario({**scenario.to_dict(), "duration": profile[-1][0], "fault": {"parameter": parameter, "profile": profile}})
             signals = scenario_signals(scenario, seed)
             estimator = TrackingEstimator(model, scenario.sample_rate, scenario.noise, 1, config=config)
+            prognosis = chain_prognosis(estimator)
             j, nominal = estimator.degradable.index(parameter), model.nominal[parameter]
             truth = signals.truth[:, model.parameter_names.index(parameter)]
             for k in range(len(signals.t)):
                 step = StepSignals(signals.measured[k], signals.load[k], signals.load_rate[k], signals.t[k : k + 1])
-                estimator.update(step, np.ones(1, dtype=bool), np.ones((1, 3), dtype=bool))
+                est = estimator.update(step, np.ones(1, dtype=bool), np.ones((1, 3), dtype=bool))
                 if 0.5 <= (truth[k] - nominal) / (limit - nominal) < 1.0:
                     rul = (limit - truth[k]) / velocity
-                    eol, low, high = (end[0, j] - signals.t[k] for end in estimator.end_of_life(signals.t[k : k + 1]))
+                    eol, low, high = (end - signals.t[k] for end in end_of_life(prognosis, est, j, signals.t[k : k + 1]))
                     errors.append(abs(eol - rul) / rul)
                     covered.append(low <= rul <= high)
         print(f"| {process} | {parameter} | {np.median(errors):.3f} | {np.mean(covered):.2f} | {len(errors)} |", flush=True)
@@ -275,7 +296,7 @@ def wear_table(config: TrackingConfig, runs: int = 6) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--tune", action="store_true", help="process-noise grid on the tuning seeds 10..17 instead of the table")
+    parser.add_argument("--tune", action="store_true", help="process-noise and prior grid on the tuning seeds 10..49 instead of the table")
     parser.add_argument("--systems", action="store_true", help="every built-in's parameters under random loads instead of the table")
     parser.add_argument("--wear", type=float, metavar="THETA_NOISE", help="RUL under the environment's wear processes, at this theta_noise")
     args = parser.parse_args()

@@ -115,7 +115,7 @@ class PHMChain:
         self.detector = Detector(thresholds, config.detector, self.monitor, config.step, n_systems)
         self.thresholds = self.detector.thresholds
         # the estimator and the prognosis that reads it come together (``PHMConfig.estimator_kind``)
-        stages = make_stages(config.estimator_kind, model, self.monitor, config, n_systems)
+        stages = make_stages(model, self.monitor, config, n_systems)
         self.estimator, self.prognosis = stages.estimator, stages.prognosis
         self.isolation = Isolation(classifier, self.monitor, config, self.classes, n_systems, stages.weights)
         self.frame_steps = self.isolation.frame_steps

@@ -71,8 +71,6 @@ ESTIMATORS: dict[str, Callable[[SystemModel, Monitor, PHMConfig, int], Estimatio
 }
 
 
-def make_stages(kind: str, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> EstimationStages:
-    """The chain's estimator of ``kind`` (``PHMConfig.estimator_kind``, a key of ``ESTIMATORS``) and its prognosis."""
-    if kind not in ESTIMATORS:
-        raise ValueError(f"estimator_kind must be one of {sorted(ESTIMATORS)}, got {kind!r}")
-    return ESTIMATORS[kind](model, monitor, config, n_systems)
+def make_stages(model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> EstimationStages:
+    """The chain's estimator of kind ``config.estimator_kind`` (a key of ``ESTIMATORS``, checked by ``PHMConfig``) and its prognosis."""
+    return ESTIMATORS[config.estimator_kind](model, monitor, config, n_systems)
