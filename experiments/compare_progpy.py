@@ -28,12 +28,19 @@ hits, beside it); isolation right at the true End of Life, runs out of runs.
     pip install -e '.[compare]'
     python experiments/compare_progpy.py                  # -> experiments/results/compare_progpy/
     python experiments/compare_progpy.py --quick          # mass ramp, seed 0, the UKF at 20 Hz, no tuning
+    python experiments/compare_progpy.py --ukf-from experiments/results/compare_progpy/results.json
+
+``--ukf-from`` runs the chain alone and takes the UKF's rows (its tuning, settings and every run's
+track, rescored here) from an earlier complete run's results.json: the UKF sees only the recorded
+signals, which depend on the scenarios and seeds alone, so its rows are the ones a complete run
+would give. The table's notes and results.json name that file and its run's arguments.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import json
 import sys
 import time
 from collections.abc import Sequence
@@ -466,16 +473,18 @@ def chain_method(estimator: str) -> str:
     return f"ea-gym chain ({estimator})"
 
 
-def run_seed(scenario: Scenario, chains: dict[str, PHMChain], settings: FilterSettings, log: Any) -> dict[str, Track]:
-    """Every estimator's track on the scenario's signals (its sensor seed as given)."""
+def run_seed(scenario: Scenario, chains: dict[str, PHMChain], settings: FilterSettings | None, log: Any) -> dict[str, Track]:
+    """Every estimator's track on the scenario's signals (its sensor seed as given); the chains' alone
+    when ``settings`` is None (the UKFs' tracks taken from an earlier run)."""
     assert scenario.fault is not None
     parameter, system = scenario.fault.parameter, scenario.model
     signals = record_signals(scenario, np.random.default_rng(scenario.sensor_seed))
     tracks = {}
     start = time.perf_counter()
-    tracks[UKF] = filter_track(run_ukf(system, signals, scenario.noise, (parameter,), settings), system, parameter)
-    everything = run_ukf(system, signals, scenario.noise, tuple(system.parameter_names), settings)
-    tracks[UKF_ALL] = filter_track(everything, system, parameter, isolate_by_drift(everything, system))
+    if settings is not None:
+        tracks[UKF] = filter_track(run_ukf(system, signals, scenario.noise, (parameter,), settings), system, parameter)
+        everything = run_ukf(system, signals, scenario.noise, tuple(system.parameter_names), settings)
+        tracks[UKF_ALL] = filter_track(everything, system, parameter, isolate_by_drift(everything, system))
     middle = time.perf_counter()
     for estimator, chain in chains.items():
         tracks[chain_method(estimator)] = run_chain(chain, signals, parameter)
@@ -547,6 +556,44 @@ def track_data(track: Track) -> dict[str, Any]:
             "rul": track.rul[:, 0], "rul_low": track.rul[:, 1], "rul_high": track.rul[:, 2]}
 
 
+def read_track(data: dict[str, Any]) -> Track:
+    """The inverse of ``track_data`` after JSON (which wrote NaN and inf as null: a missing estimate is NaN, a missing RUL inf)."""
+    def numbers(key: str, missing: float) -> np.ndarray:
+        return np.array([missing if v is None else v for v in data[key]], dtype=float)
+
+    rul = np.stack([numbers(key, np.inf) for key in ("rul", "rul_low", "rul_high")], axis=1)
+    return Track(numbers("t", np.nan), numbers("estimate", np.nan), numbers("estimate_time", np.nan), tuple(data["isolated"]), rul)
+
+
+@dataclass(frozen=True)
+class EarlierUKF:
+    """The UKF's rows of an earlier complete run: its settings, tuning, tracks per scenario and method, and where they came from."""
+
+    settings: FilterSettings
+    tuning: list[dict[str, Any]]
+    tracks: dict[str, dict[str, list[Track]]]
+    source: dict[str, Any]
+
+
+def read_earlier_ukf(path: Path, names: Sequence[str], seeds: Sequence[int]) -> EarlierUKF:
+    """The UKF's rows of ``path`` (a results.json of this script), for ``names`` and ``seeds``.
+
+    Raises:
+        ValueError: the file lacks a scenario, a UKF method, or ran other seeds.
+    """
+    data = json.loads(path.read_text())
+    if list(data.get("seeds", [])) != list(seeds):
+        raise ValueError(f"--ukf-from: {path} ran seeds {data.get('seeds')}, not {list(seeds)}")
+    tracks = {}
+    for name in names:
+        runs = data.get("runs", {}).get(name, {})
+        if not all(method in runs for method in (UKF, UKF_ALL)):
+            raise ValueError(f"--ukf-from: {path} has no UKF runs of {name}")
+        tracks[name] = {method: [read_track(run) for run in runs[method]] for method in (UKF, UKF_ALL)}
+    source = {"path": str(path), "arguments": data.get("arguments"), **({"reused_from": data["ukf_source"]} if "ukf_source" in data else {})}
+    return EarlierUKF(FilterSettings(**data["ukf"]), data.get("tuning", []), tracks, source)
+
+
 # ---------------------------------------------------------------------------------------------------
 # command line
 # ---------------------------------------------------------------------------------------------------
@@ -562,6 +609,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--drift-noise", type=float, default=None, help="the UKF's drift noise, not tuned (default: tuned on seeds 10..12)")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "compare_progpy", help="output folder")
     parser.add_argument("--quick", action="store_true", help="mass ramp, seed 0, the UKF at 20 Hz, no tuning: a smoke run")
+    parser.add_argument("--ukf-from", type=Path, default=None, help="run the chain alone, the UKF's rows from this earlier results.json")
     args = parser.parse_args(argv)
     if any(seed < 0 for seed in args.seeds):
         parser.error(f"--seeds: must be >= 0, got {args.seeds}")
@@ -569,6 +617,10 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         parser.error(f"--ukf-rate: must be > 0 Hz, got {args.ukf_rate}")
     if args.drift_noise is not None and not args.drift_noise >= 0:
         parser.error(f"--drift-noise: must be >= 0, got {args.drift_noise}")
+    if args.ukf_from is not None and not args.ukf_from.is_file():
+        parser.error(f"--ukf-from: expected an earlier results.json of this script, {args.ukf_from} is not a file")
+    if args.ukf_from is not None and (args.quick or args.ukf_rate is not None or args.drift_noise is not None):
+        parser.error("--ukf-from: the UKF's settings come from that file; leave out --quick, --ukf-rate and --drift-noise")
     if args.quick:
         args.scenarios = ["mass_m_ramp"] if "--scenarios" not in (argv or sys.argv) else args.scenarios
         args.seeds, args.ukf_rate = args.seeds[:1], args.ukf_rate or 20.0
@@ -582,14 +634,23 @@ def log(message: str) -> None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    if importlib.util.find_spec("progpy") is None:
+    earlier = None
+    if args.ukf_from is not None:
+        try:
+            earlier = read_earlier_ukf(args.ukf_from, args.scenarios, args.seeds)
+        except (ValueError, KeyError, TypeError, json.JSONDecodeError) as error:
+            print(f"compare_progpy: {error}", file=sys.stderr)
+            return 2
+    elif importlib.util.find_spec("progpy") is None:
         print("compare_progpy: ProgPy is not installed; pip install -e '.[compare]' (progpy==1.9.0)", file=sys.stderr)
         return 2
     scenarios = {name: load_scenario(SCENARIOS / f"{name}.json") for name in args.scenarios}
     spring = load_scenario(SCENARIOS / "spring_k_ramp.json")
     settings = FilterSettings(rate=args.ukf_rate or spring.sample_rate)
     tuning: list[dict[str, Any]] = []
-    if args.drift_noise is None:
+    if earlier is not None:
+        settings, tuning = earlier.settings, earlier.tuning
+    elif args.drift_noise is None:
         drift_noise, tuning = tune_drift_noise(spring, settings, DRIFT_NOISE_GRID, log)
         settings = replace(settings, drift_noise=drift_noise)
     else:
@@ -603,8 +664,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         classifier = classifier_for(scenario.model)
         chains = {estimator_label(e): build_chain(scenario.model, chain_config(scenario, e), classifier, np.random.default_rng(scenario.sensor_seed))
                   for e in estimators}
-        runs = [run_seed(with_seed(scenario, seed), chains, settings, log) for seed in args.seeds]
-        tracks[name] = {method: [run[method] for run in runs] for method in runs[0]}
+        runs = [run_seed(with_seed(scenario, seed), chains, None if earlier else settings, log) for seed in args.seeds]
+        tracks[name] = {**(earlier.tracks[name] if earlier else {}), **{method: [run[method] for run in runs] for method in runs[0]}}
         for method, method_tracks in tracks[name].items():
             summary.setdefault(method, {})[name] = summarise([score_run(t, scenario) for t in method_tracks], scenario.fault.parameter)
     markdown = table(summary, scenarios)
@@ -612,6 +673,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         f"\nSeeds {args.seeds} (sensors.seed + 100 i); the UKF at {settings.rate:g} Hz (one sample in {spring.sample_rate / settings.rate:g} "
         f"of the same noisy samples), drift noise {settings.drift_noise:g} "
         "of nominal per s per sqrt(s)" + (" (the smallest RMS error on the spring ramp's seeds 10..12)" if tuning else " (given, not tuned)")
+        + (f"; the UKF's rows from {earlier.source['path']} (an earlier run, arguments {earlier.source['arguments']}: the UKF sees only "
+           "the recorded signals, the same for the same scenarios and seeds)" if earlier else "")
         + f". Errors from {SETTLE:g} s after onset to the true End of Life (the chain's estimate against the truth at the time it "
         "describes); alpha-lambda (alpha 0.2) and coverage over predictions every second from 50 to 90 % of the way from onset to End of Life.\n"
     )
@@ -619,7 +682,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     plot_estimates(tracks, scenarios, args.out / "estimates.png")
     write_json(args.out / "results.json", json_ready({
         "arguments": list(argv if argv is not None else sys.argv[1:]),
-        "seeds": args.seeds, "ukf": {**vars(settings)}, "tuning": tuning, "summary": summary,
+        "seeds": args.seeds, "ukf": {**vars(settings)}, "tuning": tuning, **({"ukf_source": earlier.source} if earlier else {}), "summary": summary,
         "runs": {name: {method: [track_data(t) for t in runs] for method, runs in by_method.items()} for name, by_method in tracks.items()},
     }))
     print(markdown + notes)

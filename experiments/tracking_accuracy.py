@@ -197,7 +197,8 @@ def tune() -> None:
             f"{p} {np.median(r['error']):.4f}/{np.max(r['error']):.4f} al {r['hit'].mean():.3f} cov {r['covered'].mean():.2f}"
             for p, r in results.items()
         )
-        print(f"theta_prior {theta_prior:g} drift_prior {drift_prior:g} theta_noise {theta_noise:g} drift_noise {drift_noise:g}: {scores}", flush=True)
+        setting = f"theta_prior {theta_prior:g} drift_prior {drift_prior:g} theta_noise {theta_noise:g} drift_noise {drift_noise:g}"
+        print(f"{setting}: {scores}", flush=True)
 
 
 def ramp_scenario(system: str, parameter: str | None, seed: int) -> Scenario:
