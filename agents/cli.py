@@ -10,9 +10,10 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, TRUST_PICKLE, refuse_pickle
-from ea_gym.cli_args import Subcommands, non_negative_int, positive_int
+from ea_gym.cli_args import Subcommands, env_option, non_negative_int, positive_int, system_option
 
 __all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent"]
 
@@ -23,13 +24,22 @@ TRUST_PICKLE_HELP = (
 )
 
 
+def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """The environment keywords of ``--env`` and ``--system`` (checked before anything heavy is imported)."""
+    kwargs = dict(args.env)
+    if args.system is not None:
+        kwargs["system"] = system_option(args.system)
+    return kwargs
+
+
 def _train(args: argparse.Namespace) -> int:
+    env_kwargs = _env_kwargs(args)
     if args.resume is not None:
         refuse_pickle(Path(args.resume), args.trust_pickle)  # before torch is imported
     from agents.training import TrainingRun, train
 
     run = TrainingRun(
-        algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed,
+        algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
         vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
         dagger_rounds=args.dagger_rounds,
@@ -41,11 +51,12 @@ def _train(args: argparse.Namespace) -> int:
 
 
 def _benchmark(args: argparse.Namespace) -> int:
+    env_kwargs = _env_kwargs(args)
     from agents.benchmark.run import run_benchmark
 
     ppo = None if args.no_ppo else (Path(args.ppo) if args.ppo is not None else default_agent())
     result = run_benchmark(args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress,
-                           trust_pickle=args.trust_pickle)
+                           trust_pickle=args.trust_pickle, env_kwargs=env_kwargs)
     rows = result["policies"]
     ranking = ", ".join(f"{name} {rows[name]['mean_cost']:.0f}" for name in result["ranking"])
     skipped = "".join(f"; skipped {name}: {note}" for name, note in result["skipped"].items())
@@ -62,6 +73,17 @@ def _convert_agent(args: argparse.Namespace) -> int:
     return 0
 
 
+def _add_environment(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument(
+        "--system", metavar="MODEL", default=None,
+        help="the machine: a built-in name (ea-gym models) or a model file (.yaml, .yml, .json); default spring_mass_damper",
+    )
+    parser.add_argument(
+        "--env", type=env_option, action="append", default=[], metavar="KEY=VALUE",
+        help="an environment keyword (ea_gym.env.EnvConfig's fields, e.g. horizon=600), VALUE read as JSON; repeatable",
+    )
+
+
 def default_agent() -> Path | None:
     """``agents/data/ppo_phm`` beside the installed package, if a policy was trained there."""
     directory = Path(__file__).parent / "data" / "ppo_phm"
@@ -74,7 +96,8 @@ def add_train(commands: Subcommands) -> None:
         "train",
         help="train a maintenance policy with stable-baselines3 on the batched environment",
         description=(
-            "Train PPO, A2C or DQN on ea_gym/SpringMassDamper-v0 (continue_after_failure=True) with normalised "
+            "Train PPO, A2C or DQN on ea_gym/SpringMassDamper-v0 (BondGraphMaintenance-v0 with --system; "
+            "continue_after_failure=True) with normalised "
             "observations and rewards. DIR becomes an agent directory: DIR/agent.json (algorithm, architecture, spaces, "
             "normalisation statistics as numbers), DIR/policy.safetensors and DIR/optimizer.safetensors (weights and "
             "optimizer state; loading them runs no code from the files), the checkpoint with the best validation reward; "
@@ -113,6 +136,7 @@ def add_train(commands: Subcommands) -> None:
                        help="DAgger rounds after the cloning: the learner acts, the teacher labels, the policy is refitted "
                             "on all labelled steps (default 0; needs --teacher)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
+    _add_environment(train)
     train.set_defaults(run=_train)
 
 
@@ -147,6 +171,7 @@ def add_benchmark(commands: Subcommands) -> None:
                            help="tuning episodes per grid value, seeds 0..K-1 (default 300)")
     benchmark.add_argument("--no-progress", action="store_true", help="no progress bars")
     benchmark.add_argument(TRUST_PICKLE, action="store_true", help=TRUST_PICKLE_HELP)
+    _add_environment(benchmark)
     benchmark.set_defaults(run=_benchmark)
 
 

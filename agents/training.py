@@ -57,7 +57,7 @@ from agents.conventions import (
 from agents.imitation import clone
 from agents.observations import LearnerView, normalised_keys
 from ea_gym.documents import read_document
-from ea_gym.env import ENV_ID
+from ea_gym.env import env_id
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_atomic, write_json
 from ea_gym.threads import single_threaded_torch
@@ -120,7 +120,7 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
     if kind == "batched":
         env: VecEnv = MaintenanceVecEnv(n_envs, **kwargs)
     elif kind == "subproc":
-        env = SubprocVecEnv([lambda: gym.make(ENV_ID, **kwargs) for _ in range(n_envs)])
+        env = SubprocVecEnv([lambda: gym.make(env_id(kwargs.get("system")), **kwargs) for _ in range(n_envs)])
     else:
         raise ValueError(f"vec_env must be 'batched' or 'subproc', got {kind!r}")
     env.seed(seed)
@@ -159,7 +159,7 @@ def hyperparameters(run: TrainingRun) -> dict[str, Any]:
 
 def trained_environment(run: TrainingRun) -> TrainedEnvironment:
     """The environment ``make_vec_env`` makes for ``run``, as an agent directory records it."""
-    return TrainedEnvironment(ENV_ID, run.obs_mode, {"continue_after_failure": True, **run.env_kwargs}, run.activity)
+    return TrainedEnvironment(env_id(run.env_kwargs.get("system")), run.obs_mode, {"continue_after_failure": True, **run.env_kwargs}, run.activity)
 
 
 def train(
@@ -278,7 +278,7 @@ def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:
     environment = trained_environment(run)
     for name, agent, here in (("algo", stored.algorithm, run.algo), ("obs_mode", stored.environment.obs_mode, environment.obs_mode),
                               ("env_kwargs", stored.environment.env_kwargs, environment.env_kwargs),
-                              ("activity", stored.environment.activity, environment.activity), ("env id", stored.environment.env_id, ENV_ID)):
+                              ("activity", stored.environment.activity, environment.activity), ("env id", stored.environment.env_id, environment.env_id)):
         if agent != here:
             raise ValueError(f"resume: the agent was trained with {name} {agent!r}, this run has {here!r}")
 
@@ -329,8 +329,9 @@ def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool
         return NormalizedPolicy(model.policy, Normalization.of(normalization), view, obs_mode or run.obs_mode, model.num_timesteps)
     description = read_agent(directory)
     environment = description.environment
-    if environment.env_id != ENV_ID:
-        raise ValueError(f"{directory / AGENT_FILE}: the agent was trained on {environment.env_id!r}, not {ENV_ID!r}")
+    expected_id = env_id(environment.env_kwargs.get("system"))
+    if environment.env_id != expected_id:
+        raise ValueError(f"{directory / AGENT_FILE}: the agent was trained on {environment.env_id!r}, not {expected_id!r}")
     run = TrainingRun(algo=description.algorithm, obs_mode=environment.obs_mode, env_kwargs=environment.env_kwargs, activity=environment.activity)
     view = cast(LearnerView, make_vec_env(run, 1, 0, kind="batched"))
     expected = {key: space.shape for key, space in description.observation_space.spaces.items()}

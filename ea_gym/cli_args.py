@@ -4,9 +4,14 @@ which packages add subcommands (the ``ea_gym.commands`` entry-point group)."""
 from __future__ import annotations
 
 import argparse
+import json
+from pathlib import Path
 from typing import Any, Protocol
 
-__all__ = ["COMMAND_GROUP", "Subcommands", "positive_int", "non_negative_int", "positive_float", "non_negative_float"]
+__all__ = [
+    "COMMAND_GROUP", "Subcommands", "env_option", "positive_int", "non_negative_int", "positive_float", "non_negative_float",
+    "system_option",
+]
 
 #: entry-point group of subcommands from other packages: each entry is ``add(commands: Subcommands) -> None``,
 #: which adds its parser with ``commands.add_parser`` and sets ``run`` (``args -> exit code``) as its default
@@ -49,3 +54,23 @@ def non_negative_float(text: str) -> float:
     if not 0 <= value < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
     return value
+
+
+def env_option(text: str) -> tuple[str, Any]:
+    """``KEY=VALUE``, an environment keyword and its value read as JSON (a bare word is text) (argparse type)."""
+    key, sep, value = text.partition("=")
+    if not sep or not key.isidentifier():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE with KEY an environment keyword, got {text!r}")
+    try:
+        return key, json.loads(value)
+    except json.JSONDecodeError:
+        return key, value
+
+
+def system_option(text: str) -> str:
+    """``--system``'s value checked: a built-in's name as is, a model file's path made absolute (the
+    environments of other processes and a resumed run find it); raises ParameterError naming the culprit."""
+    from ea_gym.model_files import is_model_file, load_system
+
+    load_system(text)
+    return str(Path(text).resolve()) if is_model_file(text) else text

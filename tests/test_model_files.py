@@ -218,3 +218,23 @@ def test_models_lists_the_builtins(capsys):
     for name in ("spring_mass_damper", "rlc_circuit", "dc_motor"):
         assert f"{name}: " in text
     assert "C1 = 0.01 F, limits [0.008, 0.012]" in text
+
+
+@pytest.mark.parametrize("command", ["train", "benchmark"])
+def test_train_and_benchmark_refuse_a_bad_system_before_anything_is_written(tmp_path, capsys, command):
+    bad = _write(tmp_path, SMD.replace("value: 0.5", "value: 0"))
+    out = tmp_path / "out"
+    assert main([command, "--system", str(bad), "--env", "horizon=60", "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"ea-gym {command}: error: model file ") and "elements.b.value" in err and err.count("\n") == 1
+    assert not out.exists()
+
+
+def test_environment_options_are_read_as_json():
+    from ea_gym.cli_args import env_option
+
+    assert env_option("horizon=600") == ("horizon", 600)
+    assert env_option("obs_mode=sensors") == ("obs_mode", "sensors")
+    assert env_option('costs={"failure": 500}') == ("costs", {"failure": 500})
+    with pytest.raises(Exception, match="KEY=VALUE"):
+        env_option("600")

@@ -16,7 +16,6 @@ from agents.benchmark.figures import plot_cost_distribution, plot_timelines
 from agents.benchmark.report import markdown
 from agents.benchmark.settings import (
     DEFAULT_GRIDS,
-    ENV_ID,
     EVALUATION_SEED_BASE,
     EVALUATION_SEED_STRIDE,
     RULES,
@@ -30,6 +29,7 @@ from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.tuning import rule_builders, tune_rules
 from agents.conventions import TRAINING_SEED, VALIDATION_SEED, refuse_pickle
 from agents.policies import ActionMap
+from ea_gym.env import env_id
 from ea_gym.files import json_ready, write_json, write_text
 
 __all__ = ["run_benchmark"]
@@ -174,7 +174,7 @@ def _environment(env_kwargs: Mapping[str, Any]) -> tuple[ActionMap, dict[str, An
     try:
         actions = ActionMap.from_env(probe)
         base = probe.unwrapped
-        environment = {"id": ENV_ID, "continue_after_failure": True, "env_kwargs": json_ready(env_kwargs),
+        environment = {"id": env_id(env_kwargs.get("system")), "continue_after_failure": True, "env_kwargs": json_ready(env_kwargs),
                        "horizon": int(base.config.horizon), "step_seconds": float(base.config.step_seconds),
                        "action_meanings": list(actions.action_meanings)}
     finally:

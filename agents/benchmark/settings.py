@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from agents.conventions import TRAINING_SEED
-from ea_gym.env import ENV_ID
+from ea_gym.env import ENV_ID, env_id
 
 __all__ = [
     "ENV_ID", "PERIODS", "THRESHOLDS", "BANDS", "QUIET_BAND", "ACTIONS", "DEFAULT_GRIDS", "EVALUATION_SEED_BASE", "EVALUATION_SEED_STRIDE",
@@ -52,11 +52,12 @@ def _benchmark_kwargs(obs_mode: str, env_kwargs: Mapping[str, Any]) -> dict[str,
 
 
 def env_factory(obs_mode: str, **env_kwargs: Any) -> Callable[[], Any]:
-    """``() -> env``: ``ea_gym/SpringMassDamper-v0`` with ``continue_after_failure=True`` and ``env_kwargs``."""
+    """``() -> env``: ``ea_gym/SpringMassDamper-v0`` (BondGraphMaintenance-v0 when ``env_kwargs`` name a
+    system) with ``continue_after_failure=True`` and ``env_kwargs``."""
     import gymnasium as gym
 
     kwargs = _benchmark_kwargs(obs_mode, env_kwargs)
-    return lambda: gym.make(ENV_ID, **kwargs)
+    return lambda: gym.make(env_id(kwargs.get("system")), **kwargs)
 
 
 def vector_env_factory(obs_mode: str, **env_kwargs: Any) -> Callable[[int], Any]:
@@ -64,7 +65,7 @@ def vector_env_factory(obs_mode: str, **env_kwargs: Any) -> Callable[[int], Any]
     import gymnasium as gym
 
     kwargs = _benchmark_kwargs(obs_mode, env_kwargs)
-    return lambda n: gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    return lambda n: gym.make_vec(env_id(kwargs.get("system")), num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
 
 
 def evaluation_seeds(seed: int, episodes: int) -> range:

@@ -19,4 +19,12 @@ if ENV_IDS[0] not in registry:
         vector_entry_point="ea_gym.env.vector:BondGraphMaintenanceVectorEnv",
     )
 
-__all__ = ["ENV_ID", "ENV_IDS", "CostModel"]
+
+
+def env_id(system: object = None) -> str:
+    """The id to make: the spring-mass-damper's without a ``system``, BondGraphMaintenance-v0's with one
+    (a built-in name, a model file's path or a model)."""
+    return ENV_ID if system is None else ENV_IDS[1]
+
+
+__all__ = ["ENV_ID", "ENV_IDS", "CostModel", "env_id"]
