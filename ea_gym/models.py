@@ -93,17 +93,26 @@ class SystemModel:
         """The R, C and I elements: the components whose EA enters the EAI sum (eq 5)."""
         return tuple(self.graph.names([Kind.R, Kind.C, Kind.I]))
 
+    @property
+    def load_index(self) -> int:
+        """The load source's position among ``state_space.input_names``."""
+        return self.state_space.input_names.index(self.load_source)
+
+    def constant_inputs(self) -> np.ndarray:
+        """The sources' constant values in ``state_space.input_names`` order, 0 at the load source, (n_inputs,):
+        an input matrix times it is what the constant sources add."""
+        return np.array([self.source_values.get(name, 0.0) for name in self.state_space.input_names])
+
     def source_inputs(self, load: np.ndarray, load_rate: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Every source's value and time derivative, (..., n_inputs) in ``state_space.input_names`` order,
         from the load source's (...): the other sources hold their constant ``source_values``."""
         load, load_rate = np.asarray(load, dtype=float), np.asarray(load_rate, dtype=float)
         if not self.source_values:
             return load[..., None], load_rate[..., None]
-        values = np.array([self.source_values.get(name, 0.0) for name in self.state_space.input_names])
-        at = self.state_space.input_names.index(self.load_source)
+        values = self.constant_inputs()
         u = np.broadcast_to(values, load.shape + values.shape).copy()
         du = np.zeros(load_rate.shape + values.shape)
-        u[..., at], du[..., at] = load, load_rate
+        u[..., self.load_index], du[..., self.load_index] = load, load_rate
         return u, du
 
     def parameter_vector(self, values: Mapping[str, float] | None = None) -> np.ndarray:

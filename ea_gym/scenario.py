@@ -38,7 +38,7 @@ from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 from ea_gym.degradation import PiecewiseLinearProfile, ProfileError
 from ea_gym.documents import DocumentError, read_document
 from ea_gym.loads import ConstantLoad, Load, RandomLoad, Sine, SinesLoad
-from ea_gym.model_files import load_system
+from ea_gym.model_files import is_model_file, load_system
 from ea_gym.models import ParameterError, SystemModel
 
 # Strict: no silent conversion of "10" or true to a number.
@@ -249,13 +249,13 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
         spec = ScenarioSpec.model_validate(data)
     except ValidationError as exc:
         raise ScenarioError.from_problems(name, _pydantic_problems(exc)) from None
+    named, base = (system, None) if system is not None else (spec.system, None if isinstance(source, Mapping) else Path(name).parent)
     try:
-        if system is not None:
-            model = load_system(system)
-        else:
-            model = load_system(spec.system, base=None if isinstance(source, Mapping) else Path(name).parent)
+        model = load_system(named, base=base)
     except ParameterError as exc:
         raise ScenarioError.from_problems(name, [f"system: {exc}"]) from None
+    if isinstance(named, str) and is_model_file(named):  # to_dict's scenario finds the file from anywhere
+        spec = spec.model_copy(update={"system": str((Path(base or ".") / named).resolve())})
 
     problems: list[str] = []
     try:
@@ -286,7 +286,7 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
         raise ScenarioError.from_problems(name, problems)
 
     return Scenario(
-        system=spec.system if system is None else (system if isinstance(system, str) else system.name),
+        system=named if isinstance(named, str) else named.name,
         model=model,
         load_spec=spec.load,
         duration=spec.duration,

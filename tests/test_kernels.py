@@ -201,12 +201,13 @@ def test_element_powers_equal_the_bond_value_products():
     M, nx, L, bonds = 3, 2, 30, 4
     smooth, scale = rng.standard_normal((M, nx + 1, L)), rng.uniform(0.5, 2.0, nx)
     Cy, Dy = rng.standard_normal((2 * bonds, nx)), rng.standard_normal(2 * bonds)
+    constant = rng.standard_normal(2 * bonds)  # what constant sources beside the load add to each bond value
     effort, flow, sign = np.array([0, 1, 2]), np.array([4, 5, 6]), np.array([1.0, -1.0, 1.0])
     inertia = np.array([[1.0, 2.0, 3.0]])  # element 2 is an I element measured on channel 1
     slope = rng.standard_normal((M, 1, L))
     power = np.empty((M, 3, L))
-    element_powers(smooth, slope, scale, Cy, Dy, effort, flow, sign, inertia, power)
-    z = np.einsum("bs,msl->mbl", Cy, smooth[:, :nx] * scale[:, None]) + Dy[None, :, None] * smooth[:, None, nx]
+    element_powers(smooth, slope, scale, Cy, Dy, constant, effort, flow, sign, inertia, power)
+    z = np.einsum("bs,msl->mbl", Cy, smooth[:, :nx] * scale[:, None]) + Dy[None, :, None] * smooth[:, None, nx] + constant[None, :, None]
     exact = z[:, effort] * sign[None, :, None] * z[:, flow]
     exact[:, 2] = 3.0 * smooth[:, 1] * slope[:, 0]
     np.testing.assert_allclose(power, exact, rtol=1e-12, atol=1e-13)

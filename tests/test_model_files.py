@@ -174,6 +174,7 @@ def test_a_scenario_names_a_model_file_relative_to_itself(tmp_path):
     path = _write(tmp_path, json.dumps(scenario), "scenario.json")
     loaded = load_scenario(path)
     assert loaded.model.name == "smd_file" and loaded.system == "models/smd.yaml"
+    assert load_scenario(loaded.to_dict()).model.name == "smd_file"  # the dict names the file from anywhere
     with pytest.raises(ScenarioError, match=r"system: model file .*absent\.yaml: cannot read the file"):
         load_scenario(dict(scenario, system="absent.yaml"))
     with pytest.raises(ParameterError, match=r"^unknown system 'pendulum'.* or a model file"):
@@ -238,3 +239,52 @@ def test_environment_options_are_read_as_json():
     assert env_option('costs={"failure": 500}') == ("costs", {"failure": 500})
     with pytest.raises(Exception, match="KEY=VALUE"):
         env_option("600")
+
+
+def _gravity_model():
+    """The spring-mass-damper file with a constant second source G (a weight of 3 N) on the mass."""
+    data = __import__("yaml").safe_load(SMD)
+    data["elements"]["G"] = {"kind": "Se", "value": 3.0, "unit": "N"}
+    data["bonds"].append(["G", "v"])
+    return model_from_data(data)
+
+
+def test_the_tracking_step_of_a_model_with_a_constant_source_equals_the_plant():
+    from ea_gym.bondgraph.simulation import hermite_coefficients
+    from ea_gym.loads import Sine, SinesLoad
+    from ea_gym.phm.tracking import transition
+
+    model, h = _gravity_model(), 0.01
+    load = SinesLoad(10.0, (Sine(4.0, 0.3), Sine(1.0, 1.1)))
+    t = np.arange(201) * h
+    run = run_model(model, t, load)
+    step = transition(model, model.parameter_vector(), h)
+    assert step.shape == (2, 2 + 4 + 1)  # Phi, the load's four Taylor columns, the constant sources' column
+    w = hermite_coefficients(load.value(t)[:, None], load.derivative(t)[:, None], h)
+    predicted = run.states[:-1] @ step[:, :2].T + w @ step[:, 2:6].T + step[:, 6]
+    np.testing.assert_allclose(predicted, run.states[1:], rtol=0, atol=1e-12 * np.abs(run.states).max())
+
+
+def test_the_monitor_adds_what_a_constant_source_puts_on_every_bond():
+    """Nominal-law powers of the R and C elements and both sources from smoothed signals equal the bond
+    values' products with the whole input vector, the constant source included."""
+    from ea_gym.diagnosis.monitor import Monitor
+    from ea_gym.loads import Sine, SinesLoad
+
+    model = _gravity_model()
+    monitor = Monitor(model, 0.01)
+    load = SinesLoad(10.0, (Sine(4.0, 0.3),))
+    t = np.arange(301) * 0.01
+    run = run_model(model, t, load)
+    signals = np.concatenate([run.states.T / np.array([10.0, 1.0])[:, None], load.value(t)[None]])
+    power, smooth = monitor.powers(signals, 0)
+    mats = model.state_space.matrices(model.parameter_vector())
+    x = smooth[:2] * np.array([10.0, 1.0])[:, None]  # momentum and displacement
+    u = np.stack([smooth[2], np.full(smooth.shape[1], 3.0)])  # F, then G
+    z = mats.Cy @ x + mats.Dy @ u
+    names, efforts, flows, signs = model.state_space.element_bonds()
+    for name in ("k", "b", "F", "G"):
+        i = names.index(name)
+        expected = z[efforts[i]] * signs[i] * z[flows[i]]
+        np.testing.assert_allclose(power[monitor.elements.index(name)], expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
+    assert np.abs(power[monitor.elements.index("G")]).max() > 0.1  # the weight does work as the mass moves

@@ -103,14 +103,15 @@ def smooth_rows(
 
 @numba.njit(cache=True)
 def element_powers(
-    smooth: np.ndarray, slope: np.ndarray, scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray,
+    smooth: np.ndarray, slope: np.ndarray, scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray, constant: np.ndarray,
     effort: np.ndarray, flow: np.ndarray, sign: np.ndarray, inertia: np.ndarray, power: np.ndarray,
 ) -> None:
     """Nominal-law power (M, E, L) of every monitored element, written to ``power``, in W.
 
     An I element's is I0 f df/dt from its own flow and derivative ``slope`` (M, n_I, L); the others'
     are their bond values' product, with the arithmetic of the matrix product (z = Cy x + Dy u summed over x in order, x =
-    ``scale`` x the smoothed signals (M, nx + 1, L), u their last channel).
+    ``scale`` x the smoothed signals (M, nx + 1, L), u their last channel, the load), plus ``constant``, what the
+    constant sources add to each bond value.
     """
     M, channels, L = smooth.shape
     nx = channels - 1
@@ -126,8 +127,8 @@ def element_powers(
             if own[e]:
                 continue
             a, b, sg = effort[e], flow[e], sign[e]
-            ze[:] = 0.0
-            zf[:] = 0.0
+            ze[:] = constant[a]
+            zf[:] = constant[b]
             for s in range(nx):
                 ca, cb, c = Cy[a, s], Cy[b, s], scale[s]
                 for t in range(L):

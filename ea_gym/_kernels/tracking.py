@@ -63,8 +63,8 @@ def predict(
 ) -> None:
     """Time update of a block of filters over one interval, in place; every array has a last, lane axis.
 
-    Z: (n, B) states [x, theta, drift]; P: (n, n, B); M = [Phi | Gamma] (nx, nx + 4, B), dM its
-    theta-slope; W: (4, B) the input's coefficients; ht: (B,) the drift's time per sample (s: h, or 0
+    Z: (n, B) states [x, theta, drift]; P: (n, n, B); M = [Phi | Gamma] (nx, nx + 4 or nx + 5, B), dM its
+    theta-slope; W: (4 or 5, B) the load's coefficients (then 1 for the constant sources' column); ht: (B,) the drift's time per sample (s: h, or 0
     where the parameter holds over the step); Q: (n, B) process-noise variances. F: (nx, 2, B)
     workspace (the Jacobian's theta column, the new states); T: (n, n, B) workspace. The Jacobian's
     other entries are Phi and the known rows theta' = theta + h drift, drift' = drift.
@@ -79,7 +79,7 @@ def predict(
             for b in range(lanes):
                 F[i, 1, b] += M[i, j, b] * Z[j, b]
                 F[i, 0, b] += dM[i, j, b] * Z[j, b]
-        for j in range(4):
+        for j in range(W.shape[0]):
             for b in range(lanes):
                 F[i, 1, b] += M[i, nx + j, b] * W[j, b]
                 F[i, 0, b] += dM[i, nx + j, b] * W[j, b]
@@ -183,7 +183,8 @@ def track(
     The S x H filters run LANES at a time, filter (s, f) in lane s H + f of the list.
 
     Args:
-        coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma] per hypothesis; terms (H,): how many are used.
+        coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis;
+            terms (H,): how many are used.
         lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``correct``.
         q: (H, 2) process-noise variances per sample of theta and drift.
         state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
@@ -251,7 +252,8 @@ def track_block(
     n, B = Z.shape
     nx = n - 2
     cols = M0.shape[1]
-    M, W, Y = np.empty((nx, cols, B)), np.empty((4, B)), np.empty((nx, B))
+    # the load's four Taylor coefficients, then 1 for the constant sources' column where there is one
+    M, W, Y = np.empty((nx, cols, B)), np.ones((cols - nx, B)), np.empty((nx, B))
     F, T, work = np.empty((nx, 2, B)), np.empty((n, n, B)), np.empty((n + 5, B))
     density = np.zeros((measured.shape[2], B))
     for k in range(1, measured.shape[2]):

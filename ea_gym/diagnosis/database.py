@@ -128,8 +128,7 @@ def build_database(
     h = 1.0 / config.sample_rate
     t = np.arange(int(round(config.frame_ends[-1] * config.sample_rate)) + 1) * h
     load_index = np.array([r[3] for r in runs])
-    u_loads = np.stack([load.value(t) for load in loads])[..., None]
-    du_loads = np.stack([load.derivative(t) for load in loads])[..., None]
+    u_loads, du_loads = model.source_inputs(np.stack([load.value(t) for load in loads]), np.stack([load.derivative(t) for load in loads]))
     u, du = u_loads[load_index], du_loads[load_index]
     space = model.state_space
     x0 = np.zeros((n, len(space.state_names)))

@@ -117,7 +117,8 @@ class Monitor:
         nominal = model.parameter_vector()
         mats = space.matrices(nominal)
         self._Cy, self._Dy = mats.Cy, mats.Dy
-        self._Dy0 = np.ascontiguousarray(mats.Dy[:, 0])  # the one input's column
+        self._Dy0 = np.ascontiguousarray(mats.Dy[:, model.load_index])  # the load's column
+        self._Dy_constant = mats.Dy @ model.constant_inputs()  # what the constant sources add to every bond
         self._buffers: dict[tuple, np.ndarray] = {}
         # per state: the nominal factor turning the measured signal into the energy variable
         self._to_state = np.array(
@@ -200,7 +201,7 @@ class Monitor:
         smooth_rows(
             rows, skip, cut, self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1), self._inertia, smooth, slope
         )
-        element_powers(smooth, slope, self._to_state, self._Cy, self._Dy0, *self._bonds, self._inertia, power)
+        element_powers(smooth, slope, self._to_state, self._Cy, self._Dy0, self._Dy_constant, *self._bonds, self._inertia, power)
         return power, smooth
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray) -> MonitorWindow:

@@ -134,8 +134,7 @@ class Operation:
         n = self.n
         # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
         theta = np.concatenate([parameters, np.broadcast_to(self.nominal, parameters.shape)])
-        loads = np.concatenate([u, u])[..., None]
-        rates = np.concatenate([du, du])[..., None]
+        loads, rates = self.model.source_inputs(np.concatenate([u, u]), np.concatenate([du, du]))
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
         gain = self.monitor.measurement_gain(theta)
         x0 = np.concatenate([self.plant, self.reference])

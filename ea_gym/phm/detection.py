@@ -152,7 +152,7 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
     u = np.stack([load.value(t) for load in loads])
     du = np.stack([load.derivative(t) for load in loads])
     nominal = np.repeat(model.parameter_vector()[None], runs, 0)
-    states = simulate_batch(model.state_space, h, u[..., None], du[..., None], nominal, np.zeros((runs, len(model.state_names))))
+    states = simulate_batch(model.state_space, h, *model.source_inputs(u, du), nominal, np.zeros((runs, len(model.state_names))))
     monitor = Monitor(model, h, config.monitor, runs)
     clean = measure(monitor, nominal, states, 0.0, rng)
     step = window_samples(config.step, h)

@@ -169,11 +169,11 @@ class EAInversion:
         theta = theta.reshape(n * g, -1)
         to_signal = self.monitor.measurement_gain(theta)
         x0 = np.repeat(start, g, 0) / to_signal
-        uu = np.repeat(u, g, 0)[..., None]
+        uu, duu = self.model.source_inputs(np.repeat(u, g, 0), np.repeat(du, g, 0))
         # the measured signals, then the load: (n g, nx + 1, T)
         signals = self.monitor.buffer("candidates", (n * g, space.n_states + 1, u.shape[1]))
-        simulate_measured(space, self.monitor.h, uu, np.repeat(du, g, 0)[..., None], theta, x0, to_signal, out=signals[:, :-1])
-        signals[:, -1] = uu[..., 0]
+        simulate_measured(space, self.monitor.h, uu, duu, theta, x0, to_signal, out=signals[:, :-1])
+        signals[:, -1] = uu[..., self.model.load_index]
         power, _ = self.monitor.powers(signals, self.context, scratch=True)
         return self.signature(power).reshape(n, g, -1)
 

@@ -102,7 +102,7 @@ class TrackingConfig:
 class HypothesisModels:
     """What the kernel needs per hypothesis (H = D + 1, "none" first).
 
-    coefficients: (H, K, nx, nx + 4) Chebyshev coefficients of [Phi | Gamma](theta), the first terms (H,) of
+    coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma](theta), the first terms (H,) of
     them nonzero; lo, hi: (H,) their
     range (the parameter's unit); gain: (H, nx) measurement gains at nominal; own: (H,) the state whose
     gain is 1 / theta (-1: none); nominal: (H,) theta at nominal (the "none" slot's: its unused parameter's).
@@ -117,10 +117,25 @@ class HypothesisModels:
     nominal: np.ndarray
 
 
+def transition(model: SystemModel, theta: np.ndarray, h: float) -> np.ndarray:
+    """[Phi | Gamma] of one step of ``h`` s under parameters ``theta`` (..., P): (..., nx, nx + 4), Gamma the
+    load's four Taylor columns; a model with constant sources beside the load gets one more column, their
+    step's contribution (it multiplies 1)."""
+    mats = model.state_space.matrices(theta)
+    step = discretize(mats.A, mats.B, h)
+    nu = model.state_space.n_inputs
+    if nu == 1:
+        return np.concatenate([step.Phi, step.Gamma], axis=-1)
+    # Gamma's columns run input by input within each Taylor order; a constant input has order 0 alone
+    load = step.Gamma[..., model.load_index :: nu]
+    constant = step.Gamma[..., :nu] @ model.constant_inputs()
+    return np.concatenate([step.Phi, load, constant[..., None]], axis=-1)
+
+
 def interpolate_discretization(
     model: SystemModel, index: int, lo: float, hi: float, h: float, rtol: float = 1e-11
 ) -> np.ndarray:
-    """Chebyshev coefficients (K, nx, nx + 4) of [Phi | Gamma] as parameter ``index`` spans [lo, hi].
+    """Chebyshev coefficients (K, nx, nx + 4 or 5) of ``transition``'s [Phi | Gamma] as parameter ``index`` spans [lo, hi].
 
     The degree grows until the interpolant matches direct evaluation to ``rtol`` (relative to each
     matrix's largest entry) between its nodes.
@@ -133,9 +148,7 @@ def interpolate_discretization(
     def evaluate(s: np.ndarray) -> np.ndarray:
         theta = np.repeat(base[None], len(s), axis=0)
         theta[:, index] = lo + (s + 1.0) * 0.5 * (hi - lo)
-        mats = model.state_space.matrices(theta)
-        step = discretize(mats.A, mats.B, h)
-        return np.concatenate([step.Phi, step.Gamma], axis=-1)
+        return transition(model, theta, h)
 
     check = chebyshev.chebpts2(129)
     exact = evaluate(check)
@@ -165,8 +178,7 @@ def hypothesis_models(model: SystemModel, degradable: Sequence[str], h: float) -
         if model.graph.elements[name].kind is Kind.I:
             gain[i] = 1.0 / model.nominal[name]
             inertia[name] = i
-    mats = model.state_space.matrices(nominal)
-    constant = np.concatenate([discretize(mats.A, mats.B, h).Phi, discretize(mats.A, mats.B, h).Gamma], axis=-1)
+    constant = transition(model, nominal, h)
     pieces = [constant[None]]
     lo, hi, own, values = [nominal[0]], [nominal[0]], [-1], [nominal[0]]
     for name in degradable:
