@@ -74,6 +74,7 @@ BAD = [
     (SMD.replace("[F, v]]", "[F, v], [F, F]]"), "bonds[4]: [F, F] joins an element to itself"),
     (SMD.replace("[v, m], [v, k], [v, b], [F, v]", "[v, m], [v, k], [v, b], [F, v], [F, m]"), "elements.F: a Se element needs exactly 1 bond, has 2"),
     ("name: [unclosed\n", "the file is not valid YAML"),
+    (SMD.replace("value: 0.5", "value: " + "9" * 400), "elements.b.value: expected a finite number > 0 (SI), got 999"),
 ]
 
 

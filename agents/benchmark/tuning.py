@@ -19,12 +19,22 @@ RuleBuilder = Callable[[Any, Any], Any]
 
 def rule_builders(actions: ActionMap) -> dict[str, RuleBuilder]:
     """The tuned rules' constructors by name: ``builder(value, action)`` (action None for rules without one)."""
+    classes = actions.diagnosis_classes[1:]
+    quiet_band = {c: b for c, b in QUIET_BAND.items() if c in classes}
     return {
         "oracle": lambda v, a: Oracle(actions, v, action=a),
         "rul_threshold": lambda v, a: RulThreshold(actions, v, action=a),
-        "corrective_band": lambda v, a: CorrectiveBand(actions, v, quiet_band=QUIET_BAND),
+        "corrective_band": lambda v, a: CorrectiveBand(actions, _band_for(v, classes), quiet_band=quiet_band),
         "periodic": lambda v, a: Periodic(actions, v),
     }
+
+
+def _band_for(band: Any, classes: Sequence[str]) -> Any:
+    """A grid value for the system's fault classes: per-component bands name the spring-mass-damper's
+    components; on a system with others, every component takes the value's narrowest band."""
+    if isinstance(band, Mapping) and set(band) != set(classes):
+        return min(band.values())
+    return band
 
 
 def _parameter(value: Any) -> Any:
