@@ -129,16 +129,16 @@ def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
     # the command line's default is the library's
     library_default = inspect.signature(benchmark_run.run_benchmark).parameters["tune_episodes"].default
 
-    def fake(episodes, seed, out, ppo, tune_episodes=10, progress=True, trust_pickle=False):
-        calls.append((episodes, seed, out, ppo, tune_episodes, progress, trust_pickle))
+    def fake(episodes, seed, out, ppo, tune_episodes=10, progress=True, trust_pickle=False, env_kwargs=None):
+        calls.append((episodes, seed, out, ppo, tune_episodes, progress, trust_pickle, env_kwargs))
         return {"policies": {"oracle": {"mean_cost": 1.0}}, "ranking": ["oracle"], "skipped": {"ppo": "none"}}
 
     monkeypatch.setattr(benchmark_run, "run_benchmark", fake)
     assert main(["benchmark", "--episodes", "4", "--seed", "2", "--out", str(tmp_path), "--ppo", str(tmp_path / "agent"),
-                 "--tune-episodes", "3", "--no-progress"]) == 0
-    assert calls[-1] == (4, 2, tmp_path, tmp_path / "agent", 3, False, False)
+                 "--tune-episodes", "3", "--no-progress", "--system", "rlc_circuit", "--env", "horizon=60"]) == 0
+    assert calls[-1] == (4, 2, tmp_path, tmp_path / "agent", 3, False, False, {"horizon": 60, "system": "rlc_circuit"})
     assert main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--trust-pickle"]) == 0
-    assert calls[-1][6] is True
+    assert calls[-1][6] is True and calls[-1][7] == {}
     assert calls[-1][:5] == (100, 0, tmp_path, None, library_default)
     assert "oracle 1" in capsys.readouterr().out
     with pytest.raises(SystemExit):
