@@ -278,7 +278,8 @@ def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:
     environment = trained_environment(run)
     for name, agent, here in (("algo", stored.algorithm, run.algo), ("obs_mode", stored.environment.obs_mode, environment.obs_mode),
                               ("env_kwargs", stored.environment.env_kwargs, environment.env_kwargs),
-                              ("activity", stored.environment.activity, environment.activity), ("env id", stored.environment.env_id, environment.env_id)):
+                              ("activity", stored.environment.activity, environment.activity),
+                              ("env id", stored.environment.env_id, environment.env_id)):
         if agent != here:
             raise ValueError(f"resume: the agent was trained with {name} {agent!r}, this run has {here!r}")
 
