@@ -289,3 +289,12 @@ def test_the_monitor_adds_what_a_constant_source_puts_on_every_bond():
         expected = z[efforts[i]] * signs[i] * z[flows[i]]
         np.testing.assert_allclose(power[monitor.elements.index(name)], expected, rtol=1e-12, atol=1e-12 * np.abs(expected).max())
     assert np.abs(power[monitor.elements.index("G")]).max() > 0.1  # the weight does work as the mass moves
+
+
+@pytest.mark.parametrize("scenario", ["two_mass_k2_ramp.json", "two_mass_weighted_k2_ramp.json"])
+def test_the_committed_model_files_and_their_scenarios_load(scenario):
+    from pathlib import Path
+
+    loaded = load_scenario(Path(__file__).parent.parent / "experiments" / "scenarios" / scenario)
+    assert loaded.fault is not None and loaded.fault.parameter == "k2"
+    assert loaded.model.state_names == ("m1", "k1", "k2", "m2") and "k2" in loaded.model.safe_limits
