@@ -169,10 +169,11 @@ class StreamingChain:
     """The chain on one machine's recorded signals, fed in chunks of any length as they arrive.
 
     The reference model (nominal parameters) runs alongside, driven by the recorded load and started
-    from the state that best explains the first step (:func:`fitted_initial_state`). The load's derivative is its central difference (one-sided at the
-    record's ends), so the load between samples is the cubic through them (Catmull-Rom). A step is
-    processed once the sample after its end has arrived (the derivative there needs it); ``finish``
-    processes the last one at the record's end. The statuses do not depend on how the record is chunked.
+    from the state that best explains the first step (:func:`fitted_initial_state`). The load's
+    derivative is its central difference (one-sided at the record's ends), so the load between samples
+    is the cubic through them (Catmull-Rom). A step is processed once the sample after its end has
+    arrived (the derivative there needs it); ``finish`` processes the last one at the record's end. The
+    statuses do not depend on how the record is chunked.
 
     Args:
         chain: for one system (N = 1); it is reset. Its sample rate is the record's.
