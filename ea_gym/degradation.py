@@ -132,6 +132,19 @@ class WearConfig:
         if not (math.isfinite(self.volatility) and self.volatility >= 0):
             raise ValueError(f"wear volatility must be >= 0, got {self.volatility!r}")
 
+    def random_walk_std(self, nominal: float, limits: tuple[float, float]) -> float:
+        """Std of the wear's random part per sqrt(s), in the parameter's unit, of a component at ``nominal``
+        with safe ``limits``: 0 for linear wear; for gamma and Wiener wear (``Wear.advance``) the increments'
+        variance is (volatility |v| 10 s)^2 / 10 s per s, v the fault's mean drift, taken here as its root
+        mean square over the rates and directions a fault may draw."""
+        if self.process == "linear":
+            return 0.0
+        low, high = self.rate
+        distances = [limits[1] - nominal, nominal - limits[0]]
+        chosen = distances if self.direction == 0 else [distances[0] if self.direction > 0 else distances[1]]
+        mean_square_drift = (low * low + low * high + high * high) / 3.0 * sum(d * d for d in chosen) / len(chosen)
+        return self.volatility * math.sqrt(10.0 * mean_square_drift)
+
 
 class Wear:
     """Degradation of the components of N systems, one fault at a time per system.

@@ -50,3 +50,31 @@ def test_profile_error_carries_the_index_and_pickles():
     assert info.value.index == 2
     copy = pickle.loads(pickle.dumps(info.value))
     assert (copy.index, str(copy)) == (2, str(info.value))
+
+
+@pytest.mark.parametrize("process", ["wiener", "gamma"])
+def test_the_wears_random_walk_std_is_that_of_its_increments(process):
+    """Wear.advance's increments over 1 s, minus their mean, have the std random_walk_std gives (one rate, one direction)."""
+    from ea_gym.degradation import Wear, WearConfig
+
+    config = WearConfig(process=process, direction=1, rate=(0.01, 0.01), arrival=(0.0, 0.0), volatility=0.3)
+    nominal, limits = np.array([0.5]), np.array([[0.4, 0.6]])
+    n = 4000
+    wear = Wear(nominal, limits, [config], n)
+    rngs = [np.random.default_rng(i) for i in range(n)]
+    wear.start(rngs, np.zeros(n), np.ones(n, dtype=bool))
+    values = np.full((n, 1), 0.5)
+    increments = wear.advance(values, np.zeros(n), 1.0, rngs)[:, 0] - 0.5
+    expected = config.random_walk_std(0.5, (0.4, 0.6))
+    assert expected == pytest.approx(0.3 * math.sqrt(10.0) * 0.01 * 0.1)
+    assert increments.mean() == pytest.approx(0.001, rel=0.05)
+    assert increments.std() == pytest.approx(expected, rel=0.05)  # 4000 draws: the std's own error is ~1 %
+
+
+def test_linear_wear_has_no_random_walk_and_a_random_direction_averages_both_limits():
+    from ea_gym.degradation import WearConfig
+
+    assert WearConfig().random_walk_std(100.0, (85.0, 105.0)) == 0.0
+    both = WearConfig(process="wiener", rate=(0.01, 0.02), volatility=0.3).random_walk_std(100.0, (85.0, 105.0))
+    # mean square drift: E[r^2] for r uniform on (0.01, 0.02), times the mean of 15^2 and 5^2
+    assert both == pytest.approx(0.3 * math.sqrt(10.0 * (0.01**2 + 0.01 * 0.02 + 0.02**2) / 3.0 * (15.0**2 + 5.0**2) / 2.0))

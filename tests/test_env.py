@@ -218,3 +218,20 @@ def test_renders_a_picture_and_text():
     env.step(0)
     text = env.render()
     assert "EA (J)" in text and "true RUL" in text
+
+
+def test_the_tracking_filters_random_walk_is_the_wears_own():
+    """Each wearing component's theta random walk (unit^2/s) is its WearConfig's; linear wear has none,
+    a component that does not wear keeps the filter's default, and a setting the chain names itself wins."""
+    from ea_gym.phm.tracking import TrackingConfig
+
+    wear = {"k": WearConfig(), "b": WearConfig(process="wiener", rate=(0.01, 0.01), direction=1)}
+    env = gym.make("ea_gym/SpringMassDamper-v0", wear=wear)
+    estimator = env.unwrapped.core.chain.estimator
+    diffusion = dict(zip(estimator.degradable, estimator.diffusion))
+    assert diffusion["k"] == 0.0
+    assert diffusion["b"] == pytest.approx(wear["b"].random_walk_std(0.5, (0.4, 0.6)) ** 2, rel=1e-12)
+    assert diffusion["m"] == pytest.approx((TrackingConfig().theta_noise * 10.0) ** 2, rel=1e-12)
+    named = PHMConfig(tracking=TrackingConfig(parameter_theta_noise=(("k", 1e-3),)))
+    estimator = gym.make("ea_gym/SpringMassDamper-v0", wear=wear, phm=named).unwrapped.core.chain.estimator
+    assert dict(zip(estimator.degradable, estimator.diffusion))["k"] == pytest.approx((1e-3 * 100.0) ** 2, rel=1e-12)

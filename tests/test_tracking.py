@@ -233,3 +233,15 @@ def test_drift_end_of_life_hand_computed() -> None:
     assert np.isinf(high) and 0 < low < np.inf
     eol, _, _ = drift_end_of_life(np.array([100.0]), np.array([0.0]), np.zeros((1, 2, 2)), limits[None], np.array([0.0]))
     assert np.isinf(eol[0])
+
+
+def test_parameter_theta_noise_replaces_the_default_for_the_named_parameters() -> None:
+    model = spring_mass_damper()
+    config = TrackingConfig(theta_noise=1e-4, parameter_theta_noise=(("b", 2e-3),))
+    est = TrackingEstimator(model, RATE, 0.01, 1, config=config)
+    expected = {name: (1e-4 * model.nominal[name]) ** 2 for name in est.degradable} | {"b": (2e-3 * 0.5) ** 2}
+    np.testing.assert_allclose(est.diffusion, [expected[name] for name in est.degradable], rtol=1e-12)
+    with pytest.raises(ValueError, match="parameter_theta_noise: 'R1'"):
+        TrackingEstimator(model, RATE, 0.01, 1, config=TrackingConfig(parameter_theta_noise=(("R1", 1e-3),)))
+    with pytest.raises(ValueError, match="parameter_theta_noise"):
+        TrackingConfig(parameter_theta_noise=(("b", -1.0),))

@@ -10,7 +10,7 @@ the rooms that do it: ``operation`` (loads, plant, sensors, wear), ``events`` (a
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -25,7 +25,7 @@ from ea_gym.env.infos import COST_ITEMS, StepInfo
 from ea_gym.env.observations import Observation, Observer, OracleTruth
 from ea_gym.env.operation import Degradation, Operation
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, classifier_for, thresholds_for
+from ea_gym.phm import PHMChain, PHMConfig, classifier_for, thresholds_for
 from ea_gym.threads import single_threaded_blas
 
 
@@ -72,7 +72,7 @@ class MaintenanceCore:
         self.limits = np.array([model.safe_limits[c] for c in self.components])
         wear = config.wear if config.wear is not None else {name: WearConfig() for name in self.components}
         self.degradation = Degradation(model, wear, self.components, n_systems)
-        self.chain, self.monitor = _supervision(model, config, n_systems, classifier, calibration_seed)
+        self.chain, self.monitor = _supervision(model, config, wear, n_systems, classifier, calibration_seed)
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
@@ -282,11 +282,22 @@ class MaintenanceCore:
         return self.observer.observe(outputs, self._since_maintenance, self._down > 0, oracle)
 
 
+def chain_settings(model: SystemModel, config: EnvConfig, wear: dict[str, WearConfig]) -> PHMConfig:
+    """The chain's settings (``EnvConfig.phm_config``), the tracking filters' theta random walk of every
+    wearing component its wear's own (``WearConfig.random_walk_std`` over nominal; settings the chain
+    names itself win): the filters' process noise is then that of the process they track, none for
+    linear wear, whose drift the filter's drift state carries."""
+    phm = config.phm_config
+    derived = {name: w.random_walk_std(model.nominal[name], model.safe_limits[name]) / abs(model.nominal[name]) for name, w in wear.items()}
+    noise = derived | dict(phm.tracking.parameter_theta_noise)
+    return replace(phm, tracking=replace(phm.tracking, parameter_theta_noise=tuple(noise.items())))
+
+
 def _supervision(
-    model: SystemModel, config: EnvConfig, n_systems: int, classifier: FaultClassifier | None, calibration_seed: int
+    model: SystemModel, config: EnvConfig, wear: dict[str, WearConfig], n_systems: int, classifier: FaultClassifier | None, calibration_seed: int
 ) -> tuple[PHMChain | None, Monitor]:
     """The PHM chain and its monitor (phm mode), or a monitor alone (the EA features of the other modes)."""
-    phm_config = config.phm_config
+    phm_config = chain_settings(model, config, wear)
     if config.obs_mode != "phm":
         return None, Monitor(model, 1.0 / config.sample_rate, phm_config.monitor, n_systems)
     if classifier is None:

@@ -69,6 +69,8 @@ class TrackingConfig:
 
     Attributes:
         theta_noise: random-walk std of theta, per sqrt(s) (1/sqrt(s)).
+        parameter_theta_noise: (parameter name, std) pairs replacing ``theta_noise`` for those
+            parameters, where their wear's own random walk is known (the environment's ``WearConfig``).
         drift_noise: random-walk std of the drift, per sqrt(s) (1/s^1.5): how fast a wear rate may change.
         state_noise: each energy variable's process-noise variance per sample, as a multiple of its
             measurement noise variance (covers the Hermite input's and the midpoint hold's small errors).
@@ -82,6 +84,7 @@ class TrackingConfig:
     """
 
     theta_noise: float = 1e-4
+    parameter_theta_noise: tuple[tuple[str, float], ...] = ()
     drift_noise: float = 4e-5
     state_noise: float = 0.0
     theta_prior: float = 0.02
@@ -94,6 +97,9 @@ class TrackingConfig:
             value = getattr(self, name)
             if not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"TrackingConfig.{name} must be finite and >= 0, got {value!r}")
+        for name, value in self.parameter_theta_noise:
+            if not (isinstance(name, str) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"TrackingConfig.parameter_theta_noise must be (name, finite std >= 0) pairs, got {(name, value)!r}")
         if not self.evidence_memory > 0:
             raise ValueError(f"TrackingConfig.evidence_memory must be > 0 s, got {self.evidence_memory!r}")
 
@@ -235,7 +241,12 @@ class TrackingEstimator:
         self.hypotheses = hypothesis_models(model, self.degradable, self.h)
         nominal = self.hypotheses.nominal
         self.process_noise = np.zeros((len(nominal), 2))
-        self.process_noise[1:, 0] = (self.config.theta_noise * nominal[1:]) ** 2 * self.h
+        theta_noise = dict(self.config.parameter_theta_noise)
+        for name in theta_noise:
+            if name not in self.degradable:
+                raise ValueError(f"TrackingConfig.parameter_theta_noise: {name!r} is not one of the tracked parameters {self.degradable}")
+        relative = np.array([theta_noise.get(name, self.config.theta_noise) for name in self.degradable])
+        self.process_noise[1:, 0] = (relative * nominal[1:]) ** 2 * self.h
         self.process_noise[1:, 1] = (self.config.drift_noise * nominal[1:]) ** 2 * self.h
         self.forget = math.exp(-self.h / self.config.evidence_memory)
         nx = model.state_space.n_states
