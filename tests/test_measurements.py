@@ -282,9 +282,11 @@ def test_recorded_healthy_machine_raises_no_alarm(recorded_runs):
 
 
 CLI_ERRORS = [
+    ("missing column", "t,F,k\n0,1,2\n0.01,1,2\n", "missing column 'm'"),
     ("extra column", "t,F,m,k,x\n0,1,2,3,4\n", "unexpected column 'x'"),
     ("NaN", _with(4, "0.02,10,NaN,0.4"), "line 4, column 'm': 'NaN'"),
     ("gap", _with(4, None), "line 4: t = 0.03 s"),
+    ("t not increasing", _with(6, "0.03,10,0.4,0.8"), "line 6: t = 0.03 s does not increase"),
     ("too short", "\n".join(GOOD) + "\n", "the record lasts 0.07 s; the chain needs at least 5 s"),
 ]
 
