@@ -70,3 +70,45 @@ def test_ukf_recovers_a_constant_parameter_from_noise_free_signals():
     assert record.mean[-1, record.states.index("k")] == pytest.approx(96.0, rel=1e-3)
     track = compare.filter_track(record, scenario.model, "k")
     assert track.estimate[-1] == record.mean[-1, 2] and track.rul.shape == (8, 3)
+
+
+def exact_track(scenario) -> compare.Track:
+    """A track that knows the truth: the true parameter, the true RUL with a 1 s wide interval around it."""
+    onset, eol = compare.fault_window(scenario)
+    t = np.arange(1.0, scenario.duration)
+    rul = np.maximum(eol - t, 0.0)
+    return compare.Track(t, scenario.fault.profile.value(t), t, (scenario.fault.parameter,) * len(t), np.stack([rul, rul - 0.5, rul + 0.5], axis=1))
+
+
+def test_a_track_survives_its_json_with_missing_estimates_and_unbounded_intervals():
+    from ea_gym.files import json_ready
+
+    rul = np.array([[np.inf, 0.0, np.inf], [4.0, 3.0, 5.0]])
+    track = compare.Track(np.array([1.0, 2.0]), np.array([np.nan, 3.0]), np.array([0.5, 1.5]), ("", "k"), rul)
+    back = compare.read_track(json_ready(compare.track_data(track)))
+    for name in ("t", "estimate", "estimate_time", "rul"):
+        np.testing.assert_array_equal(getattr(back, name), getattr(track, name))
+    assert back.isolated == track.isolated
+
+
+def test_ukf_from_reuses_an_earlier_runs_ukf_rows_and_runs_the_chain(tmp_path, capsys):
+    import json
+
+    from ea_gym.files import json_ready, write_json
+
+    scenario = compare.with_seed(load_scenario(compare.SCENARIOS / "mass_m_ramp.json"), 0)
+    runs = {compare.UKF: [compare.track_data(exact_track(scenario))], compare.UKF_ALL: [compare.track_data(exact_track(scenario))]}
+    earlier = write_json(tmp_path / "earlier.json", json_ready({
+        "arguments": ["--seeds", "0"], "seeds": [0], "ukf": vars(compare.FilterSettings(drift_noise=1e-5)), "tuning": [],
+        "runs": {"mass_m_ramp": runs},
+    }))
+    # the earlier run's seeds must be the ones asked for: one line, exit 2, nothing written
+    assert compare.main(["--scenarios", "mass_m_ramp", "--seeds", "0", "1", "--ukf-from", str(earlier), "--out", str(tmp_path / "no")]) == 2
+    assert capsys.readouterr().err.count("\n") == 1 and not (tmp_path / "no").exists()
+    assert compare.main(["--scenarios", "mass_m_ramp", "--seeds", "0", "--ukf-from", str(earlier), "--out", str(tmp_path / "out")]) == 0
+    results = json.loads((tmp_path / "out" / "results.json").read_text())
+    ukf = results["summary"][compare.UKF]["mass_m_ramp"]
+    assert ukf["error_median"] == 0.0 and ukf["alpha_lambda"] == 1.0 and ukf["coverage"] == 1.0  # rescored from the file's track
+    assert results["ukf"]["drift_noise"] == 1e-5 and results["ukf_source"]["path"] == str(earlier)
+    assert set(results["summary"]) == {compare.UKF, compare.UKF_ALL, compare.chain_method("tracking")}
+    assert str(earlier) in (tmp_path / "out" / "table.md").read_text()
