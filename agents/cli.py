@@ -34,6 +34,8 @@ def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 def _train(args: argparse.Namespace) -> int:
     env_kwargs = _env_kwargs(args)
+    if args.backend == "rllib":
+        return _train_rllib(args, env_kwargs)
     if args.resume is not None:
         refuse_pickle(Path(args.resume), args.trust_pickle)  # before torch is imported
     from agents.training import TrainingRun, train
@@ -47,6 +49,25 @@ def _train(args: argparse.Namespace) -> int:
     resume = None if args.resume is None else Path(args.resume)
     summary = train(run, Path(args.out), resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
     print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
+    return 0
+
+
+def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
+    sb3_only = [flag for flag, used in (("--algo", args.algo != "ppo"), ("--teacher", args.teacher is not None),
+                                        ("--resume", args.resume is not None), ("--vec-env", args.vec_env != "batched"),
+                                        ("--dagger-rounds", args.dagger_rounds > 0), ("--system", args.system is not None)) if used]
+    if sb3_only:
+        raise ValueError(f"--backend rllib trains PPO from scratch on the spring-mass-damper's native vector env: drop {', '.join(sb3_only)}")
+    from agents.ray_cluster import require_ray
+
+    require_ray("--backend rllib")
+    from agents.rllib_training import RLlibRun, train_rllib
+
+    run = RLlibRun(timesteps=args.timesteps, obs_mode=args.obs_mode, num_env_runners=args.num_env_runners, envs_per_env_runner=args.n_envs,
+                   seed=args.seed, env_kwargs=env_kwargs)
+    summary = train_rllib(run, Path(args.out), address=args.ray, say=(lambda line: None) if args.no_progress else print)
+    print(f"trained ppo with RLlib for {summary['env_steps_sampled']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s, "
+          f"episodes {summary['episodes']}); wrote {args.out}")
     return 0
 
 
@@ -137,6 +158,12 @@ def add_train(commands: Subcommands) -> None:
                             "on all labelled steps (default 0; needs --teacher)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_environment(train)
+    rllib = train.add_argument_group("RLlib", "--backend rllib: PPO with Ray RLlib (the optional extra ea-gym[rllib]); --n-envs is per env runner")
+    rllib.add_argument("--backend", choices=["sb3", "rllib"], default="sb3", help="stable-baselines3 (default) or Ray RLlib's PPO")
+    rllib.add_argument("--num-env-runners", type=non_negative_int, default=2,
+                       help="RLlib env runners, each a process stepping one native vector env of --n-envs systems (default 2)")
+    rllib.add_argument("--ray", metavar="ADDRESS", default=None,
+                       help="the Ray cluster to run on (the address `ray start --head` prints, or auto); default a local Ray")
     train.set_defaults(run=_train)
 
 
