@@ -7,7 +7,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
 venv=${RLLIB_VENV:-.venv-rllib}
-stamp=$venv/.ea-gym-rllib-installed
+stamp=$venv/.ea-gym-installed
 want=$(cat pyproject.toml constraints.txt | sha256sum | cut -d' ' -f1)
 if [ ! -x "$venv/bin/python" ]; then
     "$PYTHON" -m venv "$venv"
@@ -17,4 +17,4 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     echo "$want" > "$stamp"
 fi
 export MPLBACKEND=Agg
-"$venv/bin/python" -m pytest -q tests/test_rllib.py "$@"
+"$venv/bin/python" -m pytest -q tests/test_ray.py "$@"

@@ -1,6 +1,6 @@
 """RLlib and Ray (the optional extra ea-gym[rllib]).
 
-Without ray (CI's .venv): the rllib backend is refused in one line. With it (``bash scripts/test_rllib.sh``,
+Without ray (CI's .venv): the rllib backend is refused in one line. With it (``bash scripts/test_ray.sh``,
 its own virtual environment): the env creator RLlib's env runners call, and a PPO iteration on an env
 runner process whose episodes all end at the horizon.
 """
@@ -12,7 +12,7 @@ import pytest
 from ea_gym.cli import main
 
 HAS_RLLIB = importlib.util.find_spec("ray") is not None and importlib.util.find_spec("ray.rllib") is not None
-needs_rllib = pytest.mark.skipif(not HAS_RLLIB, reason="needs the rllib extra: bash scripts/test_rllib.sh")
+needs_rllib = pytest.mark.skipif(not HAS_RLLIB, reason="needs the rllib extra: bash scripts/test_ray.sh")
 
 
 @pytest.mark.skipif(HAS_RLLIB, reason="the message shown where ray is missing")
