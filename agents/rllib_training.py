@@ -27,7 +27,7 @@ from agents.conventions import SUMMARY_FILE, TRAINING_SEED
 from ea_gym.env import ENV_ID
 from ea_gym.files import json_ready, write_json
 
-__all__ = ["RLlibRun", "EPISODE_COUNTS", "env_creator", "register", "ppo_config", "train_rllib"]
+__all__ = ["RLlibRun", "EPISODE_COUNTS", "env_creator", "register", "ppo_config", "build_algorithm", "train_iterations", "train_rllib"]
 
 #: the counters of finished episodes in RLlib's env-runner metrics: horizon (truncated at the horizon),
 #: failed (terminated by a failure) and other (any other length: wrong episode boundaries)
@@ -126,6 +126,29 @@ def ppo_config(run: RLlibRun) -> Any:
     )
 
 
+def build_algorithm(run: RLlibRun, address: str | None = None, num_cpus: int | None = None) -> Any:
+    """RLlib's PPO of ``run``, its env runners started on Ray (``ray_cluster.connect(address, num_cpus)``)."""
+    from agents.ray_cluster import connect
+
+    connect(address, num_cpus)
+    return ppo_config(run).build_algo()
+
+
+def train_iterations(algorithm: Any, timesteps: int, say: Any = print) -> list[dict[str, Any]]:
+    """``algorithm.train()`` until ``timesteps`` environment steps were sampled; each iteration's figures
+    (``iteration_s``: its wall time, sampling and learning), one line each to ``say``."""
+    from ea_gym.threads import single_threaded_torch
+
+    iterations: list[dict[str, Any]] = []
+    with single_threaded_torch():  # the learner shares the driver's cores with the env runners
+        while not iterations or iterations[-1]["env_steps_sampled"] < timesteps:
+            started = time.perf_counter()
+            result = algorithm.train()
+            iterations.append({**_iteration(result), "iteration_s": round(time.perf_counter() - started, 2)})
+            say(_line(iterations[-1]))
+    return iterations
+
+
 def train_rllib(
     run: RLlibRun, out: Path, address: str | None = None, num_cpus: int | None = None, say: Any = print, checkpoint: bool = True,
 ) -> dict[str, Any]:
@@ -137,21 +160,12 @@ def train_rllib(
         num_cpus: the local Ray's CPUs (None: every core); unused with an address.
         say: where the one line per iteration goes.
     """
-    from agents.ray_cluster import connect
-    from ea_gym.threads import single_threaded_torch
+    import ray
 
     out = Path(out)
-    ray = connect(address, num_cpus)
-    algorithm = ppo_config(run).build_algo()
-    iterations: list[dict[str, Any]] = []
+    algorithm = build_algorithm(run, address, num_cpus)
     started = time.perf_counter()
-    sampled = 0
-    with single_threaded_torch():  # the learner shares the driver's cores with the env runners
-        while sampled < run.timesteps:
-            result = algorithm.train()
-            iterations.append(_iteration(result))
-            sampled = iterations[-1]["env_steps_sampled"]
-            say(_line(iterations[-1]))
+    iterations = train_iterations(algorithm, run.timesteps, say)
     wall = time.perf_counter() - started
     out.mkdir(parents=True, exist_ok=True)
     if checkpoint:
@@ -160,36 +174,25 @@ def train_rllib(
     last = iterations[-1]
     summary = json_ready({
         "run": asdict(run), "backend": "rllib", "ray": ray.__version__, "address": address or "local",
-        "wall_time_s": round(wall, 1), "steps_per_s": round(sampled / wall, 1),
-        "env_steps_sampled": sampled, "episodes": {kind: last[kind] for kind in EPISODE_COUNTS},
-        "sampling_steps_per_s": _sampling_throughput(iterations), "iterations": iterations, "checkpoint": CHECKPOINT_DIR if checkpoint else None,
+        "wall_time_s": round(wall, 1), "steps_per_s": round(last["env_steps_sampled"] / wall, 1), "env_steps_sampled": last["env_steps_sampled"],
+        "episodes": {kind: last[kind] for kind in EPISODE_COUNTS}, "iterations": iterations, "checkpoint": CHECKPOINT_DIR if checkpoint else None,
     })
     write_json(out / SUMMARY_FILE, summary)
     return summary
 
 
 def _iteration(result: Mapping[str, Any]) -> dict[str, Any]:
-    """The figures kept of one ``Algorithm.train()`` result."""
+    """The figures kept of one ``Algorithm.train()`` result (RLlib's episode lengths and returns are over
+    its smoothing window of recent episodes; the episode counts are lifetime sums)."""
     runners = result.get("env_runners", {})
-    timers = result.get("timers", {})
     return json_ready({
         "iteration": result.get("training_iteration"),
         "env_steps_sampled": int(result.get("num_env_steps_sampled_lifetime", runners.get("num_env_steps_sampled_lifetime", 0))),
-        "env_steps_this_iteration": int(runners.get("num_env_steps_sampled", 0)),
-        "sample_time_s": timers.get("env_runner_sampling_timer"),
         "episode_return_mean": runners.get("episode_return_mean"),
         "episode_len_min": runners.get("episode_len_min"),
         "episode_len_max": runners.get("episode_len_max"),
         **{kind: int(runners.get(kind, 0)) for kind in EPISODE_COUNTS},
     })
-
-
-def _sampling_throughput(iterations: list[dict[str, Any]]) -> float | None:
-    """Environment steps per second of sampling (all env runners together), over every iteration but the first (warm-up)."""
-    timed = [it for it in iterations[1:] if it["sample_time_s"]]
-    if not timed:
-        return None
-    return round(sum(it["env_steps_this_iteration"] for it in timed) / sum(it["sample_time_s"] for it in timed), 1)
 
 
 def _line(iteration: Mapping[str, Any]) -> str:
