@@ -25,7 +25,7 @@ def test_rllib_backend_without_ray_is_one_line_and_writes_nothing(tmp_path, caps
 
 
 @pytest.mark.parametrize("flags, named", [(["--teacher", "oracle"], "--teacher"), (["--algo", "dqn"], "--algo"),
-                                          (["--vec-env", "subproc"], "--vec-env")])
+                                          (["--vec-env", "subproc"], "--vec-env"), (["--system", "dc_motor"], "--system")])
 def test_rllib_backend_refuses_the_sb3_options(tmp_path, capsys, flags, named):
     out = tmp_path / "run"
     assert main(["train", "--backend", "rllib", "--out", str(out), *flags]) == 2
