@@ -144,6 +144,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth."""
     import numpy as np
 
+    from ea_gym.energy import window_samples
     from ea_gym.measurements import noise_estimate, read_measurements
     from ea_gym.model_files import load_system
     from ea_gym.phm import PHMConfig, build_chain, check_duration, classifier_for, run_measurements
@@ -153,15 +154,17 @@ def _phm_measurements(args: argparse.Namespace) -> int:
         raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
     model = load_system(args.system)
     measurements = read_measurements(args.measurements, model)
-    noise = PHMConfig().noise if args.noise is None else args.noise
+    check_duration(measurements, PHMConfig(sample_rate=measurements.sample_rate))  # before the calibration and the network
+    # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
+    estimate = noise_estimate(measurements, window_samples(PHMConfig().step, 1.0 / measurements.sample_rate))
+    noise = estimate if args.noise is None else args.noise
     config = PHMConfig(sample_rate=measurements.sample_rate, noise=noise)
-    check_duration(measurements, config)  # before the thresholds' calibration and the network
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
     chain = build_chain(model, config, classifier_for(model, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)
-    estimate = noise_estimate(measurements, chain.step_samples)
+    source = "the record's estimate" if args.noise is None else "--noise"
     noise_line = (f"The record's sensor noise looks like {estimate:.2%} of the signals' RMS "
-                  f"(ea_gym.measurements.noise_estimate); the detection thresholds are calibrated for {noise:.2%} (--noise).")
+                  f"(ea_gym.measurements.noise_estimate); the detection thresholds are calibrated for {noise:.2%} ({source}).")
     print(noise_line)
     if estimate > 1.5 * noise + 0.002:
         print(f"ea-gym phm: warning: --noise {noise:g} is likely too low for this record: alarms may be false", file=sys.stderr)
@@ -275,11 +278,11 @@ def _add_phm(commands: Subcommands) -> None:
     phm.add_argument(
         "--noise", type=non_negative_float, metavar="FRACTION",
         help=("with --measurements: the sensors' noise std as a fraction of each signal's RMS over a 1 s step "
-              "(0.01 = 1 %%), which the detection thresholds are calibrated for (default: PHMConfig's, 0, "
-              "noise-free). Take it from a fault-free stretch of the record: the std of a signal minus its "
-              "smoothed self, over the signal's RMS (or the sensor's data sheet); the command prints such an "
-              "estimate from the record and warns when --noise looks too low. Too low raises alarms on a "
-              "healthy machine; too high detects faults later."),
+              "(0.01 = 1 %%), which the detection thresholds are calibrated for (default: estimated from the "
+              "record, the std of each signal minus its smoothed self over its RMS, ea_gym.measurements."
+              "noise_estimate). Set it from a fault-free stretch of the record or the sensors' data sheet; "
+              "the command prints the record's estimate and warns when --noise looks too low. Too low raises "
+              "alarms on a healthy machine; too high detects faults later."),
     )
     phm.add_argument(
         "--seed", type=int, default=None,

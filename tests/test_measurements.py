@@ -319,7 +319,7 @@ def test_phm_options_that_do_not_go_together(tmp_path, capsys, args, fragment):
     assert not (tmp_path / "out").exists()
 
 
-def test_phm_measurements_prints_the_records_noise_and_warns_when_noise_is_left_too_low(tmp_path, capsys):
+def test_phm_measurements_calibrates_at_the_records_noise_unless_told_and_warns_when_told_too_low(tmp_path, capsys):
     scenario = load_scenario(dict(HEALTHY, duration=8.0))
     record = scenario_measurements(scenario, np.random.default_rng(0))
     csv = write_measurements(tmp_path / "m.csv", MODEL, record)
@@ -327,9 +327,15 @@ def test_phm_measurements_prints_the_records_noise_and_warns_when_noise_is_left_
     captured = capsys.readouterr()
     estimate = re.search(r"The record's sensor noise looks like ([0-9.]+)% of the signals' RMS", captured.out)
     assert estimate is not None and 0.9 < float(estimate.group(1)) < 1.1  # the record's 1 %
+    assert f"calibrated for {estimate.group(1)}% (the record's estimate)" in captured.out
+    assert "warning" not in captured.err
+    assert json.loads((tmp_path / "out" / "results.json").read_text())["detection_time"] is None  # healthy: no alarm
+    assert estimate.group(0) in (tmp_path / "out" / "report.md").read_text()
+
+    assert main(["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--noise", "0", "--out", str(tmp_path / "low")]) == 0
+    captured = capsys.readouterr()
     assert "calibrated for 0.00% (--noise)" in captured.out
     assert "ea-gym phm: warning: --noise 0 is likely too low for this record" in captured.err
-    assert estimate.group(0) in (tmp_path / "out" / "report.md").read_text()
 
 
 def test_phm_help_says_how_to_choose_the_noise(capsys):
