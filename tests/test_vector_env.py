@@ -297,3 +297,19 @@ def test_sb3_vec_env_equals_dummy_vec_env_of_single_environments():
                 ended += 1
                 assert all(np.array_equal(terminal[k], expected_terminal[k]) for k in a)
     assert ended >= 6
+
+
+def test_native_env_equals_single_envs_with_every_system_in_alarm():
+    # every fault from the first second, no maintenance: the alarms rise within a few steps and the
+    # isolation (features, network, balance) and the tracking filters' fault evidence run for all systems
+    n = 3
+    wear = {name: WearConfig(arrival=(0.0, 1.0)) for name in FAST_WEAR}
+    native, reference = _pair(n, AutoresetMode.NEXT_STEP, obs_mode="phm", continue_after_failure=True, wear=wear)
+    assert_same(native.reset(seed=11), reference.reset(seed=11), "reset")
+    chain = native.unwrapped.core.chain
+    carry_on = np.zeros(n, dtype=int)
+    classified = 0
+    for step in range(30):
+        assert_same(native.step(carry_on), reference.step(carry_on), f"step {step}")
+        classified += int(chain.isolation.counted(chain.history, chain.detector.state.alarm).sum())
+    assert chain.detector.state.alarm.all() and classified >= n * 5

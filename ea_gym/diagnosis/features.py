@@ -78,20 +78,43 @@ def spectral_peaks(
     Returns:
         (N, 2 N_PEAKS): [f_1, a_1, f_2, a_2, ...], largest first.
     """
-    from scipy.signal import find_peaks
-
     frequencies, _, magnitude = residual_spectrogram(residual, sub_window, residual.shape[-1], residual.shape[-1])
     magnitude = magnitude[..., 0] / np.maximum(scale, TINY)[:, None]
     out = np.zeros((len(residual), 2 * N_PEAKS))
-    for row, spectrum in enumerate(magnitude):
-        peaks, _ = find_peaks(spectrum)
-        peaks = peaks[frequencies[peaks] <= max_frequency]
-        if len(peaks) == 0:
-            continue
-        peaks = peaks[spectrum[peaks] >= min_relative * spectrum[peaks].max()]
-        best = peaks[np.argsort(spectrum[peaks])[::-1][:N_PEAKS]]
-        out[row, 0 : 2 * len(best) : 2] = frequencies[best]
-        out[row, 1 : 2 * len(best) : 2] = spectrum[best]
+    # every row at once: a peak is a sample above both neighbours (scipy's find_peaks without options)
+    inner = magnitude[:, 1:-1]
+    peak = np.zeros(magnitude.shape, dtype=bool)
+    peak[:, 1:-1] = (inner > magnitude[:, :-2]) & (inner > magnitude[:, 2:])
+    peak &= frequencies <= max_frequency
+    candidate = np.where(peak, magnitude, -np.inf)
+    top = candidate.max(axis=1, initial=-np.inf)
+    peak &= magnitude >= min_relative * top[:, None]
+    candidate = np.where(peak, magnitude, -np.inf)
+    order = np.argsort(-candidate, axis=1, kind="stable")[:, :N_PEAKS]
+    found = np.take_along_axis(peak, order, axis=1)
+    out[:, 0::2] = np.where(found, frequencies[order], 0.0)
+    out[:, 1::2] = np.where(found, np.take_along_axis(magnitude, order, axis=1), 0.0)
+    # a flat top (equal neighbours) or equal peaks: scipy's plateau rule and its sort's order decide, row by row
+    ranked = np.sort(candidate, axis=1)
+    tied = np.any(magnitude[:, 1:] == magnitude[:, :-1], axis=1) | np.any((ranked[:, 1:] == ranked[:, :-1]) & np.isfinite(ranked[:, 1:]), axis=1)
+    for row in np.flatnonzero(tied):
+        out[row] = _peaks_of(magnitude[row], frequencies, max_frequency, min_relative)
+    return out
+
+
+def _peaks_of(spectrum: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float) -> np.ndarray:
+    """``spectral_peaks`` of one spectrum through scipy's ``find_peaks`` (plateaus, ties)."""
+    from scipy.signal import find_peaks
+
+    out = np.zeros(2 * N_PEAKS)
+    peaks, _ = find_peaks(spectrum)
+    peaks = peaks[frequencies[peaks] <= max_frequency]
+    if len(peaks) == 0:
+        return out
+    peaks = peaks[spectrum[peaks] >= min_relative * spectrum[peaks].max()]
+    best = peaks[np.argsort(spectrum[peaks])[::-1][:N_PEAKS]]
+    out[0 : 2 * len(best) : 2] = frequencies[best]
+    out[1 : 2 * len(best) : 2] = spectrum[best]
     return out
 
 
