@@ -1,42 +1,46 @@
-"""Environment throughput: single env, Gymnasium's SyncVectorEnv of it, and the native batched env; PPO wall time.
+"""Environment throughput in three regimes, side by side: healthy, in alarm, and the shipped PPO agent's own.
 
-What it measures, in one run, on ``ea_gym/SpringMassDamper-v0`` with the full PHM chain (obs_mode "phm"),
-``continue_after_failure=True`` and random actions from a seeded generator:
+What it measures, in one run, on ``ea_gym/SpringMassDamper-v0`` with the full PHM chain (obs_mode "phm",
+``continue_after_failure=True``), for N in ``--sizes`` (default 1, 16, 256, 1024): env-steps per second
+of the native batched environment (``vectorization_mode="vector_entry_point"``) and of Gymnasium's
+``SyncVectorEnv`` of single environments (up to ``--sync-max``, default 256: beyond it a measurement
+takes minutes), and at N = 1 of the single environment itself (``gym.make``). The regimes:
 
-1. env-steps per second of the single environment, of ``gymnasium.make_vec(..., vectorization_mode="sync")``
-   and of the native batched environment (``vectorization_mode="vector_entry_point"``), for N in
-   ``--sizes`` (default 1, 16, 256, 1024). Each is timed over ``--steps`` batch steps after ``--warmup``
-   batch steps; the warm-up lets faults arrive, so that the chain's fault stages (EA inversion,
-   isolation) run in the timed part, as in training. The share of systems with a raised alarm is
-   reported beside each number, since the EA inversion dominates once a fault is detected.
-2. PPO training wall time for ``--ppo-steps`` steps with 16 environments: on the batched
-   ``MaintenanceVecEnv`` and on stable-baselines3's ``SubprocVecEnv`` of single environments, same
-   hyperparameters.
-3. The batched environment at N = 256 in alarm: every fault arriving in the first second, no
-   maintenance, the EA inversion and the tracking filter (``PHMConfig.estimator_kind``) side by side,
-   timed in alternating blocks; the alarm share beside each (``--alarm-only`` runs this alone).
-4. A cProfile of the batched environment at N = 256: where the time goes.
+* ``healthy``: no fault arrives in the episode (every wear's arrival after the horizon), actions
+  "carry on": the monitor and the tracking filters run, the isolation never does.
+* ``alarm``: every fault arrives in the first second, no maintenance ("carry on"): after
+  ``--alarm-warmup`` steps most systems are in alarm, so the isolation (features, network, balance
+  evidence) and the prognosis run for them at every step.
+* ``ppo``: the shipped agent ``agents/data/ppo_phm`` (read from its pickle-free files) chooses the
+  actions in the environment it was trained in (its ``env_kwargs``); only ``step`` is timed.
 
-Run: ``python experiments/bench_throughput.py [--sizes 1 16 256 1024] [--json PATH]``.
+Each figure comes with the share of systems in alarm (mean over the timed steps), the CPU seconds
+the process used per wall second (below 1 on a machine others load), the env-steps per CPU second
+(less sensitive to that load than the wall rate) and the 1-minute load average when it was taken.
+``--profile`` adds, per regime, a cProfile of the batched env at N = 256 summarised by stage.
+Speed-ups between two commits are best stated with ``experiments/bench_against.py`` (alternating
+fresh processes).
+
+Run: ``python experiments/bench_throughput.py [--sizes 1 16 256 1024] [--regimes healthy alarm ppo]
+[--profile] [--json PATH]``; the defaults take a few minutes on an unloaded 2-core machine.
 """
 
 from __future__ import annotations
 
 import argparse
 import cProfile
-import io
 import os
 import platform
 import pstats
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
+from gymnasium.vector import SyncVectorEnv
 
 try:
     import ea_gym  # noqa: F401
@@ -44,188 +48,197 @@ except ImportError:  # run from a checkout without installing
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
     import ea_gym  # noqa: F401
 
-from ea_gym.env import ENV_ID
-from ea_gym.env.maintenance import BondGraphMaintenanceEnv
-from ea_gym.files import write_json
-from ea_gym.threads import single_threaded_torch
+ROOT = Path(__file__).resolve().parents[1]
+if str(ROOT) not in sys.path:  # the agents package sits beside ea_gym in a checkout
+    sys.path.insert(0, str(ROOT))
 
-KWARGS: dict[str, Any] = {"obs_mode": "phm", "continue_after_failure": True}
-ALARM_WARMUP = 12  # env steps (5 s each) before the in-alarm regime is timed: faults past their detection
+from ea_gym.degradation import WearConfig  # noqa: E402
+from ea_gym.env import ENV_ID  # noqa: E402
+from ea_gym.files import write_json  # noqa: E402
+from ea_gym.models import get_model  # noqa: E402
+from ea_gym.threads import single_threaded_torch  # noqa: E402
 
+REGIMES = ("healthy", "alarm", "ppo")
+AGENT = ROOT / "agents" / "data" / "ppo_phm"
+CARRY_ON = 0  # the action table's first entry
+#: the shipped model's components, each worn by a fault of the given arrival window (s after reset)
+COMPONENTS = tuple(get_model("spring_mass_damper").safe_limits)
 
-def _alarm_share(env) -> float:
-    unwrapped = env.unwrapped if hasattr(env, "unwrapped") else env
-    if hasattr(unwrapped, "core"):
-        return float(unwrapped.core.chain.detector.state.alarm.mean())
-    cores = [e.unwrapped.core for e in unwrapped.envs]
-    return float(np.mean([c.chain.detector.state.alarm[0] for c in cores]))
-
-
-def _action_index(env, kind) -> int:
-    """The index of the batched environment's first action of ``kind`` (an ``ActionKind``)."""
-    return next(i for i, action in enumerate(env.unwrapped.actions) if action.kind is kind)
+Actor = Callable[[dict[str, np.ndarray], int], np.ndarray]
 
 
-def time_vector(kind: str, n: int, steps: int, warmup: int, seed: int) -> dict:
-    env = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode=kind, **KWARGS)
-    env.reset(seed=seed)
-    rng = np.random.default_rng(seed)
-    assert isinstance(env.single_action_space, spaces.Discrete)
-    n_actions = int(env.single_action_space.n)
-    actions = lambda: rng.integers(0, n_actions, n)  # noqa: E731
+def regime_kwargs(regime: str) -> dict[str, Any]:
+    """The environment's keywords in ``regime`` (the ``ppo`` regime's come from the agent's files)."""
+    base: dict[str, Any] = {"obs_mode": "phm", "continue_after_failure": True}
+    if regime == "healthy":  # the horizon is 500 s: no fault arrives
+        return base | {"wear": {name: WearConfig(arrival=(1e6, 2e6)) for name in COMPONENTS}}
+    if regime == "alarm":
+        return base | {"wear": {name: WearConfig(arrival=(0.0, 1.0)) for name in COMPONENTS}}
+    if regime == "ppo":
+        from agents.agent_files import read_agent
+
+        environment = read_agent(AGENT).environment
+        return base | {"obs_mode": environment.obs_mode, **environment.env_kwargs}
+    raise ValueError(f"regime must be one of {REGIMES}, got {regime!r}")
+
+
+def regime_actor(regime: str) -> Actor:
+    """The actions of ``regime``: "carry on", or the shipped agent's (deterministic) choice."""
+    if regime != "ppo":
+        return lambda observation, n: np.full(n, CARRY_ON)
+    from agents.training import load_policy
+
+    policy = load_policy(AGENT)
+
+    def act(observation: dict[str, np.ndarray], n: int) -> np.ndarray:
+        with single_threaded_torch():
+            return np.asarray(policy.predict(observation, deterministic=True)[0]).reshape(n)
+
+    return act
+
+
+def make_env(kind: str, n: int, kwargs: dict[str, Any]) -> gym.vector.VectorEnv:
+    """``kind``: "batched" (the native vector env), "sync" (SyncVectorEnv of single envs) or "single" (N = 1,
+    ``gym.make`` behind a batch-of-one adapter)."""
+    if kind == "batched":
+        return gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+    if kind == "sync":
+        return SyncVectorEnv([lambda: gym.make(ENV_ID, **kwargs) for _ in range(n)])
+    if kind == "single":
+        return _Single(gym.make(ENV_ID, **kwargs))
+    raise ValueError(f"kind must be batched, sync or single, got {kind!r}")
+
+
+class _Single:
+    """The single environment behind the vector interface this script drives (observations with a leading axis of 1)."""
+
+    def __init__(self, env: gym.Env):
+        self.env = env
+
+    def reset(self, seed: int) -> tuple[dict[str, np.ndarray], dict]:
+        observation, info = self.env.reset(seed=seed)
+        return {key: np.asarray(value)[None] for key, value in observation.items()}, info
+
+    def step(self, actions: np.ndarray) -> tuple[Any, ...]:
+        observation, *rest = self.env.step(int(actions[0]))
+        return ({key: np.asarray(value)[None] for key, value in observation.items()}, *rest)
+
+    def close(self) -> None:
+        self.env.close()
+
+
+def alarm_share(env: Any) -> float:
+    """The share of the systems whose alarm is raised."""
+    if isinstance(env, _Single):
+        return float(env.env.unwrapped.core.chain.detector.state.alarm[0])
+    if isinstance(env, SyncVectorEnv):
+        return float(np.mean([e.unwrapped.core.chain.detector.state.alarm[0] for e in env.envs]))
+    return float(env.unwrapped.core.chain.detector.state.alarm.mean())
+
+
+def measure(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, actor: Actor, profile: cProfile.Profile | None = None) -> dict:
+    """env-steps/s of ``kind`` at N = ``n`` in ``regime`` over ``steps`` batch steps after ``warmup``."""
+    env = make_env(kind, n, regime_kwargs(regime))
+    observation, _ = env.reset(seed=seed)
     for _ in range(warmup):
-        env.step(actions())
-    alarm = _alarm_share(env)
-    started = time.perf_counter()
+        observation = env.step(actor(observation, n))[0]
+    wall = cpu = 0.0
+    shares = []
     for _ in range(steps):
-        env.step(actions())
-    wall = time.perf_counter() - started
+        actions = actor(observation, n)  # the agent's decision is not the env's time
+        started, used = time.perf_counter(), time.process_time()
+        if profile is not None:
+            profile.enable()
+        observation = env.step(actions)[0]
+        if profile is not None:
+            profile.disable()
+        wall += time.perf_counter() - started
+        cpu += time.process_time() - used
+        shares.append(alarm_share(env))
     env.close()
-    return {"env_steps_per_s": n * steps / wall, "batch_steps": steps, "wall_s": wall, "alarm_share": alarm}
+    return {
+        "env_steps_per_s": n * steps / wall, "env_steps_per_cpu_s": n * steps / max(cpu, 1e-9), "cpu_share": cpu / wall,
+        "alarm_share": float(np.mean(shares)), "batch_steps": steps, "warmup": warmup, "load_1min": os.getloadavg()[0],
+    }
 
 
-def time_single(steps: int, warmup: int, seed: int) -> dict:
-    env = gym.make(ENV_ID, **KWARGS)
-    env.reset(seed=seed)
-    rng = np.random.default_rng(seed)
-    assert isinstance(env.action_space, spaces.Discrete) and isinstance(env.unwrapped, BondGraphMaintenanceEnv)
-    n_actions, chain = int(env.action_space.n), env.unwrapped.core.chain
-    for _ in range(warmup):
-        env.step(int(rng.integers(n_actions)))
-    assert chain is not None  # phm mode
-    alarm = float(chain.detector.state.alarm[0])
-    started = time.perf_counter()
-    for _ in range(steps):
-        env.step(int(rng.integers(n_actions)))
-    wall = time.perf_counter() - started
-    return {"env_steps_per_s": steps / wall, "batch_steps": steps, "wall_s": wall, "alarm_share": alarm}
+#: where a step's time goes: the first stage whose marker is in a function's file path takes its own time
+STAGES = (
+    ("tracking filters", ("_kernels/tracking", "phm/tracking")),
+    ("isolation network", ("torch/", "diagnosis/classifier")),
+    ("isolation features", ("diagnosis/features", "scipy/signal")),
+    ("balance evidence and fusion", ("phm/isolation",)),
+    ("monitor (EA, detection)", ("_kernels/monitor", "diagnosis/monitor", "_kernels/activity", "_kernels/smoothing", "phm/detection", "phm/history")),
+    ("plant and wear", ("_kernels/expm", "bondgraph/", "env/operation", "degradation", "_kernels/multisine", "loads")),
+    ("prognosis", ("phm/prognosis", "_kernels/propagation", "_kernels/normal")),
+)
 
 
-def time_in_alarm(n: int, steps: int, warmup: int, seed: int, kinds: Sequence[str], rounds: int = 3) -> dict:
-    """The batched environment at N with every system's fault arriving in its first second and no
-    maintenance (always carry on): most systems are in alarm, the chain's fault stages run everywhere.
+def stage_times(profile: cProfile.Profile, batch_steps: int) -> dict[str, float]:
+    """Each stage's own time per batch step (ms), from a profile of ``batch_steps`` steps; the rest is "other"."""
+    stats = pstats.Stats(profile).stats  # type: ignore[attr-defined]
+    times = dict.fromkeys([name for name, _ in STAGES] + ["other (Python glue, numpy)"], 0.0)
+    for (filename, _, _), (_, _, own, _, _) in stats.items():
+        path = filename.replace(os.sep, "/")
+        stage = next((name for name, markers in STAGES if any(m in path for m in markers)), "other (Python glue, numpy)")
+        times[stage] += own
+    return {name: 1e3 * value / batch_steps for name, value in times.items()}
 
-    One environment per estimator kind (``PHMConfig.estimator_kind``), the same seed; after ``warmup``
-    steps each, ``rounds`` blocks of ``steps`` steps alternate between them, so that a machine whose
-    load changes slows them alike. Returns per kind: env-steps/s over all its blocks and the alarm share.
-    """
-    from ea_gym.degradation import WearConfig
-    from ea_gym.env.events import ActionKind
-    from ea_gym.models import get_model
-    from ea_gym.phm import PHMConfig
 
-    wear = {name: WearConfig(arrival=(0.0, 1.0)) for name in get_model("spring_mass_damper").safe_limits}
-    envs = {kind: gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", obs_mode="phm",
-                               continue_after_failure=True, wear=wear, phm=PHMConfig(estimator_kind=kind)) for kind in kinds}
-    walls = dict.fromkeys(kinds, 0.0)
-    carry_on = np.full(n, _action_index(next(iter(envs.values())), ActionKind.CARRY_ON))
-    for env in envs.values():
-        env.reset(seed=seed)
-        for _ in range(warmup):
-            env.step(carry_on)
-    for _ in range(rounds):
-        for kind, env in envs.items():
-            started = time.perf_counter()
-            for _ in range(steps):
-                env.step(carry_on)
-            walls[kind] += time.perf_counter() - started
-    results = {kind: {"env_steps_per_s": n * steps * rounds / walls[kind], "alarm_share": _alarm_share(env)} for kind, env in envs.items()}
-    for env in envs.values():
-        env.close()
+def run(args: argparse.Namespace) -> dict:
+    results: dict[str, Any] = {
+        "machine": {"processor": platform.processor(), "cores": os.cpu_count(), "python": platform.python_version()},
+        "regimes": {}, "profiles": {},
+    }
+    print(f"machine: {os.cpu_count()} cores, python {platform.python_version()}, load {os.getloadavg()[0]:.1f}")
+    header = f"{'regime':>8} {'N':>5} {'env':>8} {'steps/s':>9} {'per CPU-s':>10} {'CPU share':>9} {'alarm':>6} {'load':>5} {'vs sync':>8}"
+    print(header)
+    for regime in args.regimes:
+        actor = regime_actor(regime)
+        warmup = args.alarm_warmup if regime == "alarm" else args.warmup
+        rows: dict[str, Any] = {}
+        for n in args.sizes:
+            kinds = ["batched"] + (["sync"] if n <= args.sync_max else []) + (["single"] if n == 1 else [])
+            row = {}
+            for kind in kinds:
+                steps = args.steps if kind != "sync" or n <= 16 else max(2, args.steps // 4)
+                row[kind] = measure(kind, n, regime, steps, warmup, args.seed, actor)
+                r = row[kind]
+                ratio = f"{row['batched']['env_steps_per_s'] / r['env_steps_per_s']:.1f}x" if kind == "sync" else ""
+                print(f"{regime:>8} {n:>5} {kind:>8} {r['env_steps_per_s']:>9.0f} {r['env_steps_per_cpu_s']:>10.0f} "
+                      f"{r['cpu_share']:>9.2f} {r['alarm_share']:>6.0%} {r['load_1min']:>5.1f} {ratio:>8}", flush=True)
+            rows[str(n)] = row
+        results["regimes"][regime] = rows
+        if args.profile:
+            profile = cProfile.Profile()
+            measure("batched", 256, regime, args.steps, warmup, args.seed, actor, profile)
+            results["profiles"][regime] = stage_times(profile, args.steps)
+    if args.profile:
+        print("\nwhere a batched step's time goes at N = 256 (ms per step, own time under cProfile):")
+        print(f"{'stage':>30} " + " ".join(f"{regime:>8}" for regime in results["profiles"]))
+        for stage in next(iter(results["profiles"].values()), {}):
+            print(f"{stage:>30} " + " ".join(f"{p[stage]:>8.1f}" for p in results["profiles"].values()))
     return results
-
-
-def time_ppo(kind: str, steps: int, seed: int) -> float:
-    from stable_baselines3 import PPO
-
-    from agents.training import TrainingRun, default_hyperparameters, make_vec_env
-
-    run = TrainingRun(n_envs=16, vec_env=kind)
-    env = make_vec_env(run, 16, seed)
-    model = PPO("MultiInputPolicy", env, seed=seed, verbose=0, **default_hyperparameters("ppo", 16))
-    started = time.perf_counter()
-    with single_threaded_torch():  # as agents.training does, for both kinds
-        model.learn(total_timesteps=steps)
-    wall = time.perf_counter() - started
-    env.close()
-    return wall
-
-
-def profile_batched(n: int, steps: int, warmup: int, seed: int, top: int = 12) -> str:
-    env = gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **KWARGS)
-    env.reset(seed=seed)
-    rng = np.random.default_rng(seed)
-    for _ in range(warmup):
-        env.step(rng.integers(0, 7, n))
-    profiler = cProfile.Profile()
-    profiler.enable()
-    for _ in range(steps):
-        env.step(rng.integers(0, 7, n))
-    profiler.disable()
-    text = io.StringIO()
-    pstats.Stats(profiler, stream=text).sort_stats("tottime").print_stats(top)
-    return text.getvalue()
-
-
-def in_alarm(steps: int, seed: int) -> dict:
-    """The in-alarm regime at N = 256, both estimator kinds side by side; printed."""
-    results = time_in_alarm(256, steps, ALARM_WARMUP, seed, ("ea_inversion", "tracking"))
-    print(f"\nbatched env, N = 256, faults from the first second, no maintenance ({ALARM_WARMUP} steps in; old figure 1550 env-steps/s):")
-    for kind, r in results.items():
-        print(f"  {kind:>13}: {r['env_steps_per_s']:.0f} env-steps/s, alarm raised in {r['alarm_share']:.0%}")
-    return results
-
-
-def print_in_alarm(steps: int, seed: int, path: Path | None) -> int:
-    results = in_alarm(steps, seed)
-    if path:
-        write_json(path, {"in_alarm_n256": results})
-    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.ArgumentDefaultsHelpFormatter)
     parser.add_argument("--sizes", type=int, nargs="+", default=[1, 16, 256, 1024], help="numbers of environments N")
-    parser.add_argument("--steps", type=int, default=20, help="timed batch steps per measurement")
-    parser.add_argument("--warmup", type=int, default=120, help="batch steps before timing (faults arrive)")
+    parser.add_argument("--regimes", nargs="+", choices=REGIMES, default=list(REGIMES), help="the regimes to run")
+    parser.add_argument("--steps", type=int, default=10, help="timed batch steps per measurement (SyncVectorEnv: fewer)")
+    parser.add_argument("--warmup", type=int, default=5, help="batch steps before timing (healthy and ppo regimes)")
+    parser.add_argument("--alarm-warmup", type=int, default=20, help="batch steps before timing in alarm (the alarms rise)")
     parser.add_argument("--sync-max", type=int, default=256, help="largest N for the SyncVectorEnv (it is slow)")
-    parser.add_argument("--ppo-steps", type=int, default=16_384, help="PPO steps for the wall-time comparison (0: skip)")
+    parser.add_argument("--profile", action="store_true", help="also profile the batched env at N = 256 in each regime")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers as JSON")
-    parser.add_argument("--alarm-steps", type=int, default=10, help="timed batch steps per block of the in-alarm regime (0: skip)")
-    parser.add_argument("--alarm-only", action="store_true", help="only the in-alarm regime at N = 256")
     args = parser.parse_args(argv)
-    if args.alarm_only:
-        return print_in_alarm(args.alarm_steps, args.seed, args.json)
-
-    print(f"machine: {platform.processor()!r}, {os.cpu_count()} cores, python {platform.python_version()}")
-    results: dict = {"single": time_single(args.steps * 10, args.warmup, args.seed), "sync": {}, "batched": {}}
-    print(f"single env: {results['single']['env_steps_per_s']:.0f} env-steps/s (alarm raised: {results['single']['alarm_share']:.0%})")
-    print(f"\n{'N':>6} {'SyncVectorEnv':>15} {'batched':>12} {'speed-up':>9} {'alarm share':>12}")
-    for n in args.sizes:
-        batched = time_vector("vector_entry_point", n, args.steps, args.warmup, args.seed)
-        results["batched"][n] = batched
-        sync = time_vector("sync", n, max(args.steps // 4, 2), args.warmup // 4, args.seed) if n <= args.sync_max else None
-        results["sync"][n] = sync
-        ratio = f"{batched['env_steps_per_s'] / sync['env_steps_per_s']:.1f}x" if sync else "-"
-        sync_text = f"{sync['env_steps_per_s']:.0f}" if sync else "skipped"
-        print(f"{n:>6} {sync_text:>15} {batched['env_steps_per_s']:>12.0f} {ratio:>9} {batched['alarm_share']:>12.0%}")
-    if args.ppo_steps:
-        results["ppo"] = {kind: time_ppo(kind, args.ppo_steps, args.seed) for kind in ("batched", "subproc")}
-        speedup = results["ppo"]["subproc"] / results["ppo"]["batched"]
-        print(f"\nPPO, {args.ppo_steps} steps, 16 envs: batched {results['ppo']['batched']:.1f} s, "
-              f"SubprocVecEnv {results['ppo']['subproc']:.1f} s ({speedup:.2f}x)")
-    if args.alarm_steps:
-        results["in_alarm_n256"] = in_alarm(args.alarm_steps, args.seed)
-    profile = profile_batched(256, 5, args.warmup, args.seed)
-    results["profile_n256"] = profile
-    print("\nbatched env, N = 256, 5 steps, by own time:\n" + profile)
-    best_256 = results["batched"].get(256, {}).get("env_steps_per_s")
-    sync_256 = (results["sync"].get(256) or {}).get("env_steps_per_s")
-    if best_256:
-        verdict = "PASS" if best_256 >= 30_000 and sync_256 and best_256 >= 10 * sync_256 else "MISS"
-        print(f"VERDICT {verdict}: batched N=256 {best_256:.0f} env-steps/s (target >= 30000, >= 10x SyncVectorEnv "
-              f"{sync_256 and f'{sync_256:.0f}'})")
+    for name in ("steps", "warmup", "alarm_warmup", "sync_max"):
+        if getattr(args, name) < (1 if name == "steps" else 0):
+            parser.error(f"--{name.replace('_', '-')} must be >= {1 if name == 'steps' else 0}, got {getattr(args, name)}")
+    if any(n < 1 for n in args.sizes):
+        parser.error(f"--sizes must be >= 1, got {args.sizes}")
+    results = run(args)
     if args.json:
         write_json(args.json, results)
     return 0
