@@ -15,7 +15,7 @@ from typing import Any
 from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, TRUST_PICKLE, refuse_pickle
 from ea_gym.cli_args import Subcommands, env_option, non_negative_int, positive_int, system_option
 
-__all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent"]
+__all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent", "BENCHMARK_POLICIES"]
 
 #: ``--trust-pickle``'s help, the same on every command that loads an agent
 TRUST_PICKLE_HELP = (
@@ -76,8 +76,11 @@ def _benchmark(args: argparse.Namespace) -> int:
     from agents.benchmark.run import run_benchmark
 
     ppo = None if args.no_ppo else (Path(args.ppo) if args.ppo is not None else default_agent())
-    result = run_benchmark(args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress,
-                           trust_pickle=args.trust_pickle, env_kwargs=env_kwargs)
+    result = run_benchmark(
+        args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress, tune=args.tune,
+        tuned_file=None if args.tuned is None else Path(args.tuned), write_tuned_to=None if args.write_tuned is None else Path(args.write_tuned),
+        allow_stale=args.allow_stale, trust_pickle=args.trust_pickle, env_kwargs=env_kwargs,
+    )
     rows = result["policies"]
     ranking = ", ".join(f"{name} {rows[name]['mean_cost']:.0f}" for name in result["ranking"])
     skipped = "".join(f"; skipped {name}: {note}" for name, note in result["skipped"].items())
@@ -167,24 +170,37 @@ def add_train(commands: Subcommands) -> None:
     train.set_defaults(run=_train)
 
 
+#: the policies ``ea-gym benchmark`` evaluates, in its order (agents.benchmark.evaluation.EVALUATION_ORDER)
+BENCHMARK_POLICIES = (
+    "oracle (Oracle on the true state, obs_mode oracle), ppo (the trained PPO agent, its own obs_mode), rul_threshold "
+    "(RulThreshold on the PHM chain's diagnosis and RUL), corrective_band (CorrectiveBand on the PHM chain's estimates), "
+    "periodic (Periodic block replacement, sensors), run_to_failure (RunToFailure, sensors)"
+)
+
+
 def add_benchmark(commands: Subcommands) -> None:
     """``ea-gym benchmark``: compare the maintenance policies on common seeds."""
     benchmark = commands.add_parser(
         "benchmark",
-        help="compare the maintenance policies (oracle, PPO, RUL threshold, periodic, run to failure) on common seeds",
+        help="compare the maintenance policies (oracle, ppo, rul_threshold, corrective_band, periodic, run_to_failure) on common seeds",
         description=(
-            "Tune the rule-based policies on tuning seeds 0..K-1 (RUL thresholds of the Oracle and of RulThreshold, "
-            "Periodic's period), then evaluate every policy on the same N evaluation seeds (100000 + S * 10000 + i, "
-            "disjoint from the training and validation seeds of ea-gym train) on ea_gym/SpringMassDamper-v0 with "
-            "continue_after_failure=True: Oracle (obs_mode oracle), a trained PPO agent (its own obs_mode), "
-            "RulThreshold (phm), Periodic (sensors) and RunToFailure (sensors). Writes DIR/benchmark.json (mean cost "
-            "with its 95 % interval, failures, availability, maintenance actions and cost ratio to the oracle per "
-            "policy), DIR/benchmark.md (the table sorted by mean cost, the tuned parameters and the command), "
-            "DIR/cost_distribution.png and DIR/timelines.png (one episode per policy). The phm mode runs at about "
-            "250 steps/s: the defaults take several minutes."
+            f"Evaluate every policy on the same N evaluation seeds (100000 + S * 10000 + i, disjoint from the training, "
+            f"validation and tuning seeds) on ea_gym/SpringMassDamper-v0 (BondGraphMaintenance-v0 with --system) with "
+            f"continue_after_failure=True: {BENCHMARK_POLICIES}. "
+            "The rules' tuned settings (thresholds, actions, bands, period) are read from agents/data/benchmark/tuned_rules.json, "
+            "which records the command, seeds and environment they were tuned on; a file tuned on another environment "
+            "(another --system or --env, other PHM settings: its fingerprint differs) is refused. --tune grid-searches "
+            "them again on tuning seeds 0..K-1 instead (at "
+            "K = 300 about 7 minutes of CPU: 40 minutes on a shared 2-core machine). Writes DIR/benchmark.json (mean "
+            "cost with its 95 % interval, failures, availability, maintenance actions and cost ratio to the oracle per "
+            "policy), DIR/benchmark.md (the table "
+            "sorted by mean cost, the tuned settings and where they came from, the command), DIR/cost_distribution.png "
+            "and DIR/timelines.png (one episode per policy)."
         ),
     )
-    benchmark.add_argument("--episodes", type=positive_int, default=100, help="evaluation episodes per policy (default 100)")
+    benchmark.add_argument("--episodes", type=positive_int, default=100, metavar="N",
+                           help="evaluation episodes per policy, for each of oracle, ppo, rul_threshold, corrective_band, periodic "
+                                "and run_to_failure (default 100)")
     benchmark.add_argument("--seed", type=int, default=0, help="benchmark seed S: evaluation seeds 100000 + S * 10000 + i (default 0)")
     benchmark.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
     ppo_choice = benchmark.add_mutually_exclusive_group()
@@ -194,8 +210,16 @@ def add_benchmark(commands: Subcommands) -> None:
         "agents/data/ppo_phm of the installed package when it exists; a directory without an agent is skipped with a note",
     )
     ppo_choice.add_argument("--no-ppo", action="store_true", help="evaluate no PPO agent (noted as skipped)")
-    benchmark.add_argument("--tune-episodes", type=positive_int, default=300, metavar="K",
-                           help="tuning episodes per grid value, seeds 0..K-1 (default 300)")
+    tuning = benchmark.add_mutually_exclusive_group()
+    tuning.add_argument("--tune", action="store_true", help="tune the rules now on the tuning seeds instead of reading their tuned settings")
+    tuning.add_argument("--tuned", metavar="PATH", default=None,
+                        help="read the rules' tuned settings from PATH (default agents/data/benchmark/tuned_rules.json)")
+    benchmark.add_argument("--tune-episodes", type=positive_int, default=None, metavar="K",
+                           help="with --tune: tuning episodes per grid value, seeds 0..K-1 (default 300)")
+    benchmark.add_argument("--write-tuned", metavar="PATH", default=None,
+                           help="with --tune: write the tuned settings to PATH (e.g. agents/data/benchmark/tuned_rules.json)")
+    benchmark.add_argument("--allow-stale", action="store_true",
+                           help="use tuned settings made on another environment instead of refusing them (the report says so)")
     benchmark.add_argument("--no-progress", action="store_true", help="no progress bars")
     benchmark.add_argument(TRUST_PICKLE, action="store_true", help=TRUST_PICKLE_HELP)
     _add_environment(benchmark)

@@ -38,7 +38,7 @@ from ea_gym.env.events import ActionKind, Replacement, parse_action, parse_event
 from ea_gym.env.infos import COST_ITEMS
 from ea_gym.files import finite_or_none
 
-__all__ = ["EpisodeStats", "evaluate", "tune", "mean_ci95", "COST_BREAKDOWN"]
+__all__ = ["EpisodeStats", "evaluate", "tune", "tuning_row", "mean_ci95", "COST_BREAKDOWN"]
 
 #: the items an episode's cost is broken down into: the environment's cost items but their total
 COST_BREAKDOWN = tuple(item for item in COST_ITEMS if item != "total")
@@ -299,16 +299,22 @@ def tune(
     table = []
     for parameter in grid:
         stats = evaluate(policy_factory(parameter), env_factory, seeds, progress, description=f"tune {parameter!r}", batch_size=batch_size)
-        low, high = stats.ci95
-        table.append({
-            "parameter": parameter,
-            "policy": stats.policy,
-            "mean_cost": stats.mean_cost,
-            "ci95": [finite_or_none(low), finite_or_none(high)],
-            "failures": stats.failures,
-            "availability": stats.availability,
-            "maintenance_actions": stats.maintenance_actions,
-            "cost_breakdown": stats.cost_breakdown,
-        })
+        table.append(tuning_row(parameter, stats))
     best = min(range(len(grid)), key=lambda i: table[i]["mean_cost"])
     return grid[best], table
+
+
+def tuning_row(parameter: Any, stats: EpisodeStats) -> dict[str, Any]:
+    """A grid search's JSON-ready row for one value: ``parameter``, ``policy``, ``mean_cost``, ``ci95``,
+    ``failures``, ``availability``, ``maintenance_actions``, ``cost_breakdown``."""
+    low, high = stats.ci95
+    return {
+        "parameter": parameter,
+        "policy": stats.policy,
+        "mean_cost": stats.mean_cost,
+        "ci95": [finite_or_none(low), finite_or_none(high)],
+        "failures": stats.failures,
+        "availability": stats.availability,
+        "maintenance_actions": stats.maintenance_actions,
+        "cost_breakdown": stats.cost_breakdown,
+    }

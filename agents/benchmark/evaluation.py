@@ -10,12 +10,13 @@ from typing import Any
 
 import numpy as np
 
+from agents.benchmark.batches import evaluate_side_by_side
 from agents.benchmark.settings import RULES, display_path
 from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.timelines import record_timeline
 from agents.benchmark.tuning import RuleBuilder
 from agents.conventions import AGENT_FILES, SUMMARY_FILE, pickled
-from agents.evaluation import EpisodeStats, evaluate, mean_ci95
+from agents.evaluation import EpisodeStats, mean_ci95
 from agents.policies import ActionMap, RunToFailure
 from ea_gym.files import finite_or_none, json_ready
 
@@ -102,30 +103,27 @@ def evaluate_policies(
     timeline_seed: int,
     env_kwargs: Mapping[str, Any],
     stopwatch: Stopwatch,
-    batch_size: int,
+    max_envs: int,
 ) -> tuple[dict[str, EpisodeStats], dict[str, dict[str, Any]]]:
-    """Every planned policy, in ``order``, on the evaluation ``seeds``, then one timeline episode each."""
+    """Every planned policy on the evaluation ``seeds`` (the policies of one obs_mode side by side on one
+    vector environment, ``batches.evaluate_side_by_side``), then one timeline episode each, in ``order``."""
     stats: dict[str, EpisodeStats] = {}
+    for mode in dict.fromkeys(plan[name]["obs_mode"] for name in order):
+        names = [name for name in order if plan[name]["obs_mode"] == mode]
+
+        def run(names: list[str] = names, mode: str = mode) -> Mapping[Any, EpisodeStats]:
+            return evaluate_side_by_side({name: plan[name]["policy"] for name in names}, make(mode), seeds, stopwatch.progress, max_envs,
+                                         description=f"evaluate {mode}")
+
+        stats.update(stopwatch.timed(f"evaluate {mode} ({', '.join(names)})", run))
     timelines: dict[str, dict[str, Any]] = {}
     for name in order:
-        entry = plan[name]
 
-        def run_policy(entry: Mapping[str, Any] = entry, name: str = name) -> EpisodeStats:
-            return evaluate(entry["policy"], make(entry["obs_mode"]), seeds, stopwatch.progress, description=name, batch_size=batch_size)
-
-        def run_timeline(entry: Mapping[str, Any] = entry) -> dict[str, Any]:
+        def timeline(entry: Mapping[str, Any] = plan[name]) -> dict[str, Any]:
             return record_timeline(entry["policy"], entry["obs_mode"], timeline_seed, env_kwargs)
 
-        if entry["kind"] == "ppo":
-            from ea_gym.threads import single_threaded_torch
-
-            with single_threaded_torch():
-                stats[name] = stopwatch.timed(f"evaluate {name}", run_policy)
-                timelines[name] = stopwatch.timed(f"timeline {name}", run_timeline)
-        else:
-            stats[name] = stopwatch.timed(f"evaluate {name}", run_policy)
-            timelines[name] = stopwatch.timed(f"timeline {name}", run_timeline)
-    return stats, timelines
+        timelines[name] = stopwatch.timed(f"timeline {name}", timeline)
+    return {name: stats[name] for name in order}, timelines
 
 
 def policy_rows(

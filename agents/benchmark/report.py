@@ -84,7 +84,9 @@ def _ranking(result: Mapping[str, Any]) -> list[str]:
             f"| {rank} | **{name}** ({row['label']}) | {row['obs_mode']} | {_param(row)} | {fmt_ci(row)} | {_ratio(row)} | "
             f"{fmt_diff(row['vs_oracle'])} | {row['failures']:.2f} | {row['availability']:.3f} | {row['maintenance_actions']:.1f} |"
         )
-    lines += ["", f"Ranking (lowest mean cost first): {' < '.join(ranking)}.", ""]
+    lines += ["", f"Policies evaluated ({seeds['episodes']} episodes each): "
+              + "; ".join(f"**{name}**: {rows[name]['label']}, obs_mode {rows[name]['obs_mode']}" for name in rows) + ".",
+              "", f"Ranking (lowest mean cost first): {' < '.join(ranking)}.", ""]
     if result["skipped"]:
         lines += ["Skipped:", ""]
         lines += [f"- **{name}**: {note}" for name, note in result["skipped"].items()]
@@ -130,8 +132,21 @@ def _value_of_information(result: Mapping[str, Any]) -> list[str]:
     return lines
 
 
+def _tuned_source(result: Mapping[str, Any]) -> str:
+    """Where the rules' tuned settings came from: tuned in this run, or read from a file (and whether it was stale)."""
+    source, seeds = result["tuned_settings"], result["seeds"]["tuning"]
+    on = f"on seeds {seeds[0]}..{seeds[1]} by `{source['command']}`"
+    if source["tuned"] == "in this run":
+        written = f", written to `{source['file']}`" if source["file"] else ""
+        return f"The rules were tuned in this run {on}{written}."
+    match = ("the same as this environment's" if not source["stale"] else
+             f"**STALE: this environment's is {source['current_fingerprint'][:12]}** (used anyway, --allow-stale)")
+    return (f"The rules' tuned settings were read from `{source['file']}`, tuned {on} on environment fingerprint "
+            f"{source['fingerprint'][:12]}, {match}.")
+
+
 def _tuning(result: Mapping[str, Any]) -> list[str]:
-    lines = ["## Tuning (tuning seeds)", ""]
+    lines = ["## Tuning (tuning seeds)", "", _tuned_source(result), ""]
     for name, tuning in result["tuning"].items():
         action = f" ({tuning['action']})" if tuning.get("action") else ""
         lines.append(f"{name} (obs_mode {tuning['obs_mode']}), {tuning['parameter_name']}: best {_value(tuning['best'])}{action}")

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping, Sequence
-from functools import partial
 from typing import Any
 
+from agents.benchmark.batches import evaluate_side_by_side
 from agents.benchmark.settings import ACTIONS, DEFAULT_GRIDS, QUIET_BAND, RULES
 from agents.benchmark.stopwatch import Stopwatch
-from agents.evaluation import tune
+from agents.evaluation import tuning_row
 from agents.policies import ActionMap, CorrectiveBand, Oracle, Periodic, RulThreshold
 
 __all__ = ["RuleBuilder", "rule_builders", "tune_rules"]
@@ -44,21 +44,18 @@ def _parameter(value: Any) -> Any:
     return int(value) if isinstance(value, (int, float)) and float(value).is_integer() else value
 
 
-def _search(builder: RuleBuilder, action: str | None, grid: Sequence[Any], make_env: Callable[[int], Any], seeds: range,
-            progress: bool, batch_size: int) -> tuple[Any, list[dict[str, Any]]]:
-    """One rule's grid search with one action: (the best value, the table)."""
-    return tune(lambda value: builder(value, action), grid, make_env, seeds, progress, batch_size)
-
-
 def tune_rules(
     grids: Mapping[str, Sequence[Any]],
     builders: Mapping[str, RuleBuilder],
     make: Callable[[str], Any],
     seeds: range,
     stopwatch: Stopwatch,
-    batch_size: int,
+    max_envs: int,
 ) -> tuple[dict[str, tuple[Any, str | None]], dict[str, Any]]:
     """Grid-search every tuned rule (``DEFAULT_GRIDS``' names) on ``seeds``.
+
+    Every (action, value) of a rule runs side by side with the others on one vector environment of up
+    to ``max_envs`` systems (``batches.evaluate_side_by_side``): the same episodes as one at a time.
 
     Args:
         grids: the values to try per rule; the oracle and RulThreshold try each with every one of ``ACTIONS``.
@@ -66,25 +63,29 @@ def tune_rules(
         make: obs_mode -> vector environment factory (``vector_env_factory``).
         seeds: the tuning seeds.
         stopwatch: times each search; its ``progress`` shows progress bars.
-        batch_size: the most episodes run side by side.
+        max_envs: the most systems stepped at once.
 
     Returns:
         ``tuned``: name -> (best value, its action or None); ``tables``: name -> the search's table
-        (obs_mode, parameter_name, grid, best, action, one row per value and action).
+        (obs_mode, parameter_name, grid, best, action, one row per action and value, actions in
+        ``ACTIONS``' order); ties go to the earlier row.
     """
     tuned: dict[str, tuple[Any, str | None]] = {}
     tables: dict[str, Any] = {}
     for name in DEFAULT_GRIDS:
         _, mode, parameter_name = RULES[name]
         grid = [_parameter(v) for v in grids[name]]
-        candidates = []  # (mean cost, value, action) of the best value per action
-        rows: list[dict[str, Any]] = []
-        for action in ACTIONS if name in ("oracle", "rul_threshold") else (None,):
-            search = partial(_search, builders[name], action, grid, make(mode), seeds, stopwatch.progress, batch_size)
-            best, table = stopwatch.timed(f"tune {name}" + (f" ({action})" if action else ""), search)
-            candidates.append((min(r["mean_cost"] for r in table), best, action))
-            rows += [{"action": action, **r} if action else r for r in table]
-        _, best, action = min(candidates, key=lambda c: c[0])  # ties go to the earlier action
-        tuned[name] = (best, action)
-        tables[name] = {"obs_mode": mode, "parameter_name": parameter_name, "grid": grid, "best": best, "action": action, "table": rows}
+        candidates = [(action, value) for action in (ACTIONS if name in ("oracle", "rul_threshold") else (None,)) for value in grid]
+        policies = {i: builders[name](value, action) for i, (action, value) in enumerate(candidates)}
+
+        def search(policies: Mapping[int, Any] = policies, mode: str = mode, name: str = name) -> Mapping[Any, Any]:
+            return evaluate_side_by_side(policies, make(mode), seeds, stopwatch.progress, max_envs, description=f"tune {name}")
+
+        stats = stopwatch.timed(f"tune {name}", search)
+        rows = [{"action": action, **tuning_row(value, stats[i])} if action else tuning_row(value, stats[i])
+                for i, (action, value) in enumerate(candidates)]
+        best = min(range(len(rows)), key=lambda i: rows[i]["mean_cost"])
+        action, value = candidates[best]
+        tuned[name] = (value, action)
+        tables[name] = {"obs_mode": mode, "parameter_name": parameter_name, "grid": grid, "best": value, "action": action, "table": rows}
     return tuned, tables
