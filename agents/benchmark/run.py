@@ -65,15 +65,12 @@ def run_benchmark(
         tune_episodes: with ``tune``, the tuning episodes (seeds 0 .. tune_episodes - 1) per grid
             value (default ``TUNE_EPISODES``); refused without ``tune``.
         progress: progress bars and one line per stage.
-        tune: grid-search the rules on the tuning seeds; otherwise read their tuned settings from
-            ``tuned_file``.
+        tune: grid-search the rules on the tuning seeds; otherwise read their tuned settings from ``tuned_file``.
         tuned_file: the tuned settings to read (default ``TUNED_RULES_FILE``); refused with ``tune``.
         write_tuned_to: with ``tune``, write the tuned settings there (``tuned.TunedRules``).
-        allow_stale: use a tuned file made on another environment (its fingerprint differs) instead
-            of refusing it; the outputs say it was stale.
-        max_envs: the most systems stepped at once on one vector environment; the policies of one
-            obs_mode (and the values of one grid) run side by side on it (its episodes equal the
-            single environment's bit for bit); the timelines step one environment.
+        allow_stale: use a tuned file made on another environment instead of refusing it (the outputs say so).
+        max_envs: the most systems stepped at once on one vector environment; the policies of one obs_mode (and
+            the values of one grid) run side by side on it; the timelines step one environment.
         ppo_policies: more trained agents, name -> directory (e.g. ``{"ppo_sensors": ..., "ppo_oracle": ...}``),
             for the value-of-information comparison; missing ones are skipped with a note.
         grids: with ``tune``, tuning grids by policy (``"oracle"``, ``"rul_threshold"``: thresholds in
@@ -111,8 +108,8 @@ def run_benchmark(
         else:
             tuned = _read_rules(TUNED_RULES_FILE if tuned_file is None else Path(tuned_file), settings, allow_stale)
         source = _source(tuned, settings, write_tuned_to if tune else tuned_file or TUNED_RULES_FILE, tune, stopwatch)
-        plan, skipped = plan_policies(tuned.rules, builders, actions, {"ppo": None if ppo is None else Path(ppo), **extra}, stopwatch.say,
-                                      trust_pickle)
+        learned = {"ppo": None if ppo is None else Path(ppo), **extra}
+        plan, skipped = plan_policies(tuned.rules, builders, actions, learned, stopwatch.say, trust_pickle)
 
         stopwatch.say(f"evaluating on seeds {evaluation.start}..{evaluation.stop - 1}")
         order = [n for n in (*EVALUATION_ORDER, *extra) if n in plan]
