@@ -104,18 +104,17 @@ def environment_settings(env: Any, env_kwargs: Mapping[str, Any]) -> dict[str, A
     The environment's id and registered keyword arguments, ``env_kwargs``, the resolved ``EnvConfig``
     (every field but ``obs_mode``, the PHM chain's settings as the chain gets them), the machine
     (name, nominal parameters, safe limits), the actions and diagnosis classes, and the SHA-256 of the
-    shipped isolation network (None when the chain trains its own).
+    chain's data: the isolation network's weights and standardisation, and the detection thresholds
+    (the values, not the files that hold them).
     """
     import gymnasium as gym
 
-    from ea_gym.diagnosis.training import shipped_classifier_path
     from ea_gym.env import env_id
 
     made = env_id(env_kwargs.get("system"))
     base = env.unwrapped
     config = dataclasses.asdict(dataclasses.replace(base.config, phm=base.config.phm_config))
     config.pop("obs_mode")
-    network = shipped_classifier_path(base.model.name)
     return json_ready({
         "id": made,
         "registered_kwargs": dict(gym.spec(made).kwargs),
@@ -126,8 +125,27 @@ def environment_settings(env: Any, env_kwargs: Mapping[str, Any]) -> dict[str, A
         "safe_limits": dict(base.safe_limits),
         "action_meanings": list(base.action_meanings),
         "diagnosis_classes": list(base.diagnosis_classes),
-        "isolation_network_sha256": hashlib.sha256(network.read_bytes()).hexdigest() if network.is_file() else None,
+        **_chain_data(base.model, base.config.phm_config),
     })
+
+
+def _chain_data(model: Any, phm_config: Any) -> dict[str, str]:
+    """SHA-256 of the isolation network the environment's chain loads (classes, weights, standardisation) and of its
+    detection thresholds (calibration seed 0, the environment's)."""
+    import numpy as np
+
+    from ea_gym.phm import classifier_for, thresholds_for
+
+    network = classifier_for(model)
+    weights = hashlib.sha256(repr(tuple(network.classes)).encode())
+    for name, tensor in sorted(network.network.state_dict().items()):
+        weights.update(name.encode())
+        weights.update(tensor.detach().cpu().numpy().tobytes())
+    for array in (network.mean, network.scale):
+        weights.update(np.ascontiguousarray(array, dtype=np.float64).tobytes())
+    thresholds = thresholds_for(model, phm_config, np.random.default_rng(0))
+    return {"isolation_network_sha256": weights.hexdigest(),
+            "detection_thresholds_sha256": hashlib.sha256(np.ascontiguousarray(thresholds, dtype=np.float64).tobytes()).hexdigest()}
 
 
 def fingerprint(settings: Mapping[str, Any]) -> str:
