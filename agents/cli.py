@@ -79,7 +79,7 @@ def _benchmark(args: argparse.Namespace) -> int:
     result = run_benchmark(
         args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress, tune=args.tune,
         tuned_file=None if args.tuned is None else Path(args.tuned), write_tuned_to=None if args.write_tuned is None else Path(args.write_tuned),
-        allow_stale=args.allow_stale, trust_pickle=args.trust_pickle, env_kwargs=env_kwargs,
+        allow_stale=args.allow_stale, trust_pickle=args.trust_pickle, env_kwargs=env_kwargs, ray=args.ray,
     )
     rows = result["policies"]
     ranking = ", ".join(f"{name} {rows[name]['mean_cost']:.0f}" for name in result["ranking"])
@@ -220,6 +220,9 @@ def add_benchmark(commands: Subcommands) -> None:
                            help="with --tune: write the tuned settings to PATH (e.g. agents/data/benchmark/tuned_rules.json)")
     benchmark.add_argument("--allow-stale", action="store_true",
                            help="use tuned settings made on another environment instead of refusing them (the report says so)")
+    benchmark.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
+                           help="run the tuning and evaluation episodes as Ray tasks (the same records; the optional extra ea-gym[rllib]): "
+                                "on a local Ray, or on the cluster at ADDRESS (the address `ray start --head` prints, or auto)")
     benchmark.add_argument("--no-progress", action="store_true", help="no progress bars")
     benchmark.add_argument(TRUST_PICKLE, action="store_true", help=TRUST_PICKLE_HELP)
     _add_environment(benchmark)

@@ -67,3 +67,55 @@ def test_ppo_on_an_env_runner_process_sees_whole_episodes(tmp_path, vectorize):
     assert summary["env_steps_sampled"] >= 200
     assert summary["episodes"] == {"episodes_at_horizon": summary["env_steps_sampled"] // 20, "episodes_failed": 0, "episodes_other_length": 0}
     assert summary["iterations"][-1]["episode_len_min"] == summary["iterations"][-1]["episode_len_max"] == 20
+
+
+@pytest.mark.skipif(HAS_RLLIB, reason="the message shown where ray is missing")
+def test_benchmark_ray_without_ray_is_one_line_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "benchmark"
+    assert main(["benchmark", "--ray", "--episodes", "2", "--no-ppo", "--no-progress", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "--ray" in error and "'.[rllib]'" in error
+    assert not out.exists()
+
+
+def test_batches_split_into_chunks_per_worker_give_the_same_records():
+    """The seam RayRunner uses: 5 seeds in chunks for 3 workers (2 + 2 + 1), records equal one chunk's."""
+    from agents.benchmark.batches import evaluate_side_by_side
+    from agents.benchmark.runners import LocalRunner
+    from agents.benchmark.settings import env_factory, vector_env_factory
+    from agents.policies import ActionMap, Periodic, RunToFailure
+
+    class ThreeWorkers(LocalRunner):
+        workers = 3
+
+        def chunk(self, seeds: int, max_envs: int) -> int:
+            return -(-seeds // self.workers)
+
+    make = vector_env_factory("sensors", horizon=40)
+    probe = env_factory("sensors", horizon=40)()
+    actions = ActionMap.from_env(probe)
+    probe.close()
+    policies = {"periodic": Periodic(actions, 10.0), "run_to_failure": RunToFailure(actions)}
+    whole = evaluate_side_by_side(policies, make, range(7, 12), False, 100)
+    split = evaluate_side_by_side(policies, make, range(7, 12), False, 100, runner=ThreeWorkers())
+    for name in policies:
+        assert split[name].seeds.tolist() == whole[name].seeds.tolist() == [7, 8, 9, 10, 11]
+        assert set(split[name].per_episode) == set(whole[name].per_episode)
+        for key, values in whole[name].per_episode.items():
+            assert split[name].per_episode[key].tolist() == values.tolist(), (name, key)
+    assert whole["periodic"].per_episode["cost"].tolist() != whole["run_to_failure"].per_episode["cost"].tolist()
+
+
+@needs_rllib
+def test_benchmark_on_ray_records_equal_the_local_run(tmp_path):
+    """Tuning and evaluation as Ray tasks on a local Ray of 2 CPUs (3 seeds: chunks of 2 and 1) against this process."""
+    from agents.benchmark.run import run_benchmark
+    from agents.benchmark.runners import RayRunner
+
+    grids = {"oracle": [5, 20], "rul_threshold": [5], "corrective_band": [{"k": 0.8, "m": 0.8, "b": 0.4}], "periodic": [20, 60]}
+    kwargs = {"tune_episodes": 3, "progress": False, "tune": True, "grids": grids, "env_kwargs": {"horizon": 60}}
+    local = run_benchmark(3, 0, tmp_path / "local", None, **kwargs)
+    assert RayRunner(None, num_cpus=2).workers == 2  # the local Ray that ray="local" joins
+    remote = run_benchmark(3, 0, tmp_path / "ray", None, ray="local", **kwargs)
+    for key in ("policies", "ranking", "tuning", "value_of_information", "seeds"):
+        assert remote[key] == local[key], key

@@ -12,10 +12,12 @@ episodes equal the single environment's bit for bit).
 from __future__ import annotations
 
 from collections.abc import Callable, Hashable, Mapping, Sequence
+from functools import partial
 from typing import Any, TypeVar
 
 import numpy as np
 
+from agents.benchmark.runners import BatchRunner, LocalRunner
 from agents.evaluation import EpisodeStats, evaluate
 from agents.policies import Policy
 
@@ -69,6 +71,7 @@ def evaluate_side_by_side(
     progress: bool,
     max_envs: int,
     description: str = "",
+    runner: BatchRunner | None = None,
 ) -> dict[Key, EpisodeStats]:
     """Every policy on every seed, as many policies per vector environment as ``max_envs`` systems allow.
 
@@ -80,6 +83,8 @@ def evaluate_side_by_side(
         progress: a progress bar per vector environment.
         max_envs: the most systems stepped at once (seeds are split into chunks of at most this many).
         description: the progress bars' label.
+        runner: where the batches (one vector environment each) run: ``runners.LocalRunner`` (None) or
+            ``runners.RayRunner``, which also splits the seeds into a chunk per worker at least.
 
     Returns:
         key -> that policy's records, its seeds in the order given.
@@ -90,19 +95,24 @@ def evaluate_side_by_side(
         raise ValueError("evaluate_side_by_side needs at least one seed and one policy")
     if max_envs < 1:
         raise ValueError(f"max_envs must be >= 1, got {max_envs}")
-    parts: dict[Key, list[EpisodeStats]] = {key: [] for key in keys}
-    for start in range(0, episodes.size, max_envs):
-        chunk = episodes[start : start + max_envs]
+    runner = runner or LocalRunner()
+    size = runner.chunk(episodes.size, max_envs)
+    batches, groups = [], []  # one vector environment each: a chunk of seeds for a group of policies
+    for start in range(0, episodes.size, size):
+        chunk = episodes[start : start + size]
         per_env = max(1, max_envs // chunk.size)  # policies per vector environment
         for first in range(0, len(keys), per_env):
             group = keys[first : first + per_env]
             joint = Blocks([policies[key] for key in group], chunk.size)
-            stats = evaluate(joint, make_env, np.tile(chunk, len(group)), progress, description=description,
-                             batch_size=chunk.size * len(group))
-            for i, key in enumerate(group):
-                part = slice(i * chunk.size, (i + 1) * chunk.size)
-                parts[key].append(EpisodeStats(seeds=stats.seeds[part], per_episode={k: v[part] for k, v in stats.per_episode.items()},
-                                               policy=repr(policies[key])))
+            batches.append(partial(evaluate, joint, make_env, np.tile(chunk, len(group)), progress and not runner.remote,
+                                   description=description, batch_size=chunk.size * len(group)))
+            groups.append((group, chunk.size))
+    parts: dict[Key, list[EpisodeStats]] = {key: [] for key in keys}
+    for (group, n), stats in zip(groups, runner.run(batches)):
+        for i, key in enumerate(group):
+            part = slice(i * n, (i + 1) * n)
+            parts[key].append(EpisodeStats(seeds=stats.seeds[part], per_episode={k: v[part] for k, v in stats.per_episode.items()},
+                                           policy=repr(policies[key])))
     return {key: _joined(runs) for key, runs in parts.items()}
 
 

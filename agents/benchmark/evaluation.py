@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from agents.benchmark.batches import evaluate_side_by_side
+from agents.benchmark.runners import BatchRunner
 from agents.benchmark.settings import RULES, display_path
 from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.timelines import record_timeline
@@ -104,16 +105,18 @@ def evaluate_policies(
     env_kwargs: Mapping[str, Any],
     stopwatch: Stopwatch,
     max_envs: int,
+    runner: BatchRunner | None = None,
 ) -> tuple[dict[str, EpisodeStats], dict[str, dict[str, Any]]]:
     """Every planned policy on the evaluation ``seeds`` (the policies of one obs_mode side by side on one
-    vector environment, ``batches.evaluate_side_by_side``), then one timeline episode each, in ``order``."""
+    vector environment, ``batches.evaluate_side_by_side``, run by ``runner``), then one timeline episode
+    each in this process, in ``order``."""
     stats: dict[str, EpisodeStats] = {}
     for mode in dict.fromkeys(plan[name]["obs_mode"] for name in order):
         names = [name for name in order if plan[name]["obs_mode"] == mode]
 
         def run(names: list[str] = names, mode: str = mode) -> Mapping[Any, EpisodeStats]:
             return evaluate_side_by_side({name: plan[name]["policy"] for name in names}, make(mode), seeds, stopwatch.progress, max_envs,
-                                         description=f"evaluate {mode}")
+                                         description=f"evaluate {mode}", runner=runner)
 
         stats.update(stopwatch.timed(f"evaluate {mode} ({', '.join(names)})", run))
     timelines: dict[str, dict[str, Any]] = {}

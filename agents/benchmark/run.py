@@ -15,6 +15,7 @@ import numpy as np
 from agents.benchmark.evaluation import EVALUATION_ORDER, evaluate_policies, plan_policies, policy_rows, value_of_information
 from agents.benchmark.figures import plot_cost_distribution, plot_timelines
 from agents.benchmark.report import markdown
+from agents.benchmark.runners import runner_for
 from agents.benchmark.settings import (
     DEFAULT_GRIDS,
     EVALUATION_SEED_BASE,
@@ -50,7 +51,7 @@ def run_benchmark(
     tune: bool = False, tuned_file: Path | None = None, write_tuned_to: Path | None = None, allow_stale: bool = False,
     max_envs: int = MAX_ENVS, ppo_policies: Mapping[str, Path] | None = None, grids: Mapping[str, Sequence[float]] | None = None,
     env_kwargs: Mapping[str, Any] | None = None, timeline_seed: int | None = None, command: str | None = None,
-    command_note: str | None = None, trust_pickle: bool = False,
+    command_note: str | None = None, trust_pickle: bool = False, ray: str | None = None,
 ) -> dict[str, Any]:
     """Evaluate and compare the maintenance policies (the rules tuned now or read from a file); write the results to
     ``out`` and return what ``benchmark.json`` holds.
@@ -84,6 +85,7 @@ def run_benchmark(
         command_note: a sentence written under the command in the markdown.
         trust_pickle: also load agents saved as stable-baselines3's files, which run any code they hold when
             unpickled; without it they are refused before any work (``agents.conventions.refuse_pickle``).
+        ray: the episodes as Ray tasks (``runners.RayRunner``, same records) on ``"local"`` Ray or a cluster's address.
     """
     started = time.perf_counter()
     out = Path(out)
@@ -94,16 +96,15 @@ def run_benchmark(
     if command is None:
         command = _default_command(episodes, seed, out, ppo, tune, tuning, tuned_file, write_tuned_to, allow_stale)
         command_note = _defaults_note(command_note, extra, grids, env_kwargs)
-    stopwatch = Stopwatch(progress)
+    stopwatch, runner = Stopwatch(progress), runner_for(ray)
     make = lambda mode: vector_env_factory(mode, **env_kwargs)  # noqa: E731
     actions, environment, settings = _environment(env_kwargs)
     builders = rule_builders(actions)
-
     # the isolation network is small: a second torch thread only waits (3.6x slower on 2 loaded cores)
     with single_threaded_torch():
         if tune:
             stopwatch.say(f"tuning on seeds {tuning.start}..{tuning.stop - 1}")
-            tuned = TunedRules(*tune_rules(grids, builders, make, tuning, stopwatch, max_envs), tuning_seeds=tuning, command=command,
+            tuned = TunedRules(*tune_rules(grids, builders, make, tuning, stopwatch, max_envs, runner), tuning_seeds=tuning, command=command,
                                settings=settings, fingerprint=fingerprint(settings), timings_s=dict(stopwatch.timings), machine=_machine())
         else:
             tuned = _read_rules(TUNED_RULES_FILE if tuned_file is None else Path(tuned_file), settings, allow_stale)
@@ -113,7 +114,7 @@ def run_benchmark(
 
         stopwatch.say(f"evaluating on seeds {evaluation.start}..{evaluation.stop - 1}")
         order = [n for n in (*EVALUATION_ORDER, *extra) if n in plan]
-        stats, timelines = evaluate_policies(plan, order, make, evaluation, timeline_seed, env_kwargs, stopwatch, max_envs)
+        stats, timelines = evaluate_policies(plan, order, make, evaluation, timeline_seed, env_kwargs, stopwatch, max_envs, runner)
     rows, ranking = policy_rows(plan, order, stats)
     rows = json_ready(rows)
     _write_figures(out, rows, timelines, stopwatch)

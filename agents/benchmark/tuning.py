@@ -6,6 +6,7 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from agents.benchmark.batches import evaluate_side_by_side
+from agents.benchmark.runners import BatchRunner
 from agents.benchmark.settings import ACTIONS, DEFAULT_GRIDS, QUIET_BAND, RULES
 from agents.benchmark.stopwatch import Stopwatch
 from agents.evaluation import tuning_row
@@ -51,6 +52,7 @@ def tune_rules(
     seeds: range,
     stopwatch: Stopwatch,
     max_envs: int,
+    runner: BatchRunner | None = None,
 ) -> tuple[dict[str, tuple[Any, str | None]], dict[str, Any]]:
     """Grid-search every tuned rule (``DEFAULT_GRIDS``' names) on ``seeds``.
 
@@ -64,6 +66,7 @@ def tune_rules(
         seeds: the tuning seeds.
         stopwatch: times each search; its ``progress`` shows progress bars.
         max_envs: the most systems stepped at once.
+        runner: where the episodes run (``runners``; None: one batch after another in this process).
 
     Returns:
         ``tuned``: name -> (best value, its action or None); ``tables``: name -> the search's table
@@ -79,7 +82,8 @@ def tune_rules(
         policies = {i: builders[name](value, action) for i, (action, value) in enumerate(candidates)}
 
         def search(policies: Mapping[int, Any] = policies, mode: str = mode, name: str = name) -> Mapping[Any, Any]:
-            return evaluate_side_by_side(policies, make(mode), seeds, stopwatch.progress, max_envs, description=f"tune {name}")
+            return evaluate_side_by_side(policies, make(mode), seeds, stopwatch.progress, max_envs, description=f"tune {name}",
+                                         runner=runner)
 
         stats = stopwatch.timed(f"tune {name}", search)
         rows = [{"action": action, **tuning_row(value, stats[i])} if action else tuning_row(value, stats[i])
