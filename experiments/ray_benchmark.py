@@ -53,7 +53,8 @@ def main(argv: list[str] | None = None) -> int:
                 ray.shutdown()
             results[name] = result
             runs[name] = {"wall_time_s": round(result["timings_s"]["total"], 1),
-                          "records_equal_local": all(result[key] == results["local"][key] for key in RECORDS)}
+                          "records_equal_local": all(result[key] == results["local"][key] for key in RECORDS),
+                          "stages_s": {stage: round(t, 1) for stage, t in result["timings_s"].items()}}
             print(name, runs[name], flush=True)
     local = runs["local"]["wall_time_s"]
     write_json(args.out / "summary.json", {
