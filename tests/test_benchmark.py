@@ -149,18 +149,21 @@ def test_cli_benchmark_passes_its_arguments(tmp_path, monkeypatch, capsys):
                  "--tune", "--tune-episodes", "3", "--write-tuned", str(tmp_path / "t.json"), "--no-progress",
                  "--system", "rlc_circuit", "--env", "horizon=60"]) == 0
     assert calls[-1] == ((4, 2, tmp_path, tmp_path / "agent", 3, False),
-                         {"tune": True, "tuned_file": None, "write_tuned_to": tmp_path / "t.json", "allow_stale": False,
+                         {"tune": True, "tuned_file": None, "write_tuned_to": tmp_path / "t.json", "allow_stale": False, "ray": None,
                           "trust_pickle": False, "env_kwargs": {"horizon": 60, "system": "rlc_circuit"}})
     assert main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--trust-pickle"]) == 0
     assert calls[-1][1]["trust_pickle"] is True and calls[-1][1]["env_kwargs"] == {}
     assert main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--tuned", str(tmp_path / "t.json"), "--allow-stale"]) == 0
     assert calls[-1] == ((100, 0, tmp_path, None, None, True),
-                         {"tune": False, "tuned_file": tmp_path / "t.json", "write_tuned_to": None, "allow_stale": True,
+                         {"tune": False, "tuned_file": tmp_path / "t.json", "write_tuned_to": None, "allow_stale": True, "ray": None,
                           "trust_pickle": False, "env_kwargs": {}})
+    # --ray alone: a local Ray; --ray ADDRESS: that cluster
+    assert main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--ray"]) == 0 and calls[-1][1]["ray"] == "local"
+    assert main(["benchmark", "--out", str(tmp_path), "--no-ppo", "--ray", "10.0.0.1:6379"]) == 0 and calls[-1][1]["ray"] == "10.0.0.1:6379"
     assert main(["benchmark", "--out", str(tmp_path), "--no-ppo"]) == 0
     assert calls[-1][0][4] == defaults["tune_episodes"]
-    assert {k: calls[-1][1][k] for k in ("tune", "tuned_file", "write_tuned_to", "allow_stale")} == {
-        k: defaults[k] for k in ("tune", "tuned_file", "write_tuned_to", "allow_stale")}
+    assert {k: calls[-1][1][k] for k in ("tune", "tuned_file", "write_tuned_to", "allow_stale", "ray")} == {
+        k: defaults[k] for k in ("tune", "tuned_file", "write_tuned_to", "allow_stale", "ray")}
     assert "oracle 1" in capsys.readouterr().out
     for clash in (["--ppo", "x"], ["--tune", "--tuned", "x"]):
         with pytest.raises(SystemExit):
