@@ -119,3 +119,11 @@ def test_benchmark_on_ray_records_equal_the_local_run(tmp_path):
     remote = run_benchmark(3, 0, tmp_path / "ray", None, ray="local", **kwargs)
     for key in ("policies", "ranking", "tuning", "value_of_information", "seeds"):
         assert remote[key] == local[key], key
+
+
+def test_benchmark_ray_refuses_a_trained_agent_before_any_work(tmp_path, capsys):
+    out = tmp_path / "benchmark"
+    assert main(["benchmark", "--ray", "--episodes", "2", "--ppo", str(tmp_path / "agent"), "--no-progress", "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "--no-ppo" in error
+    assert not out.exists()

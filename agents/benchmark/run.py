@@ -96,7 +96,7 @@ def run_benchmark(
     if command is None:
         command = _default_command(episodes, seed, out, ppo, tune, tuning, tuned_file, write_tuned_to, allow_stale)
         command_note = _defaults_note(command_note, extra, grids, env_kwargs)
-    stopwatch, runner = Stopwatch(progress), runner_for(ray)
+    stopwatch, runner = Stopwatch(progress), runner_for(ray, [ppo, *extra.values()])
     make = lambda mode: vector_env_factory(mode, **env_kwargs)  # noqa: E731
     actions, environment, settings = _environment(env_kwargs)
     builders = rule_builders(actions)

@@ -83,8 +83,12 @@ def _run_batch(batch: Batch) -> EpisodeStats:
         return batch()
 
 
-def runner_for(ray: str | None) -> BatchRunner:
-    """``LocalRunner`` for None; ``RayRunner`` for ``"local"`` (a local Ray) or a cluster's address."""
+def runner_for(ray: str | None, trained_agents: Sequence[object] = ()) -> BatchRunner:
+    """``LocalRunner`` for None; ``RayRunner`` for ``"local"`` (a local Ray) or a cluster's address, which
+    refuses ``trained_agents`` (any not None): a loaded agent's observation wrapper holds an environment
+    that does not travel to the workers, so only the rules' episodes run as Ray tasks."""
     if ray is None:
         return LocalRunner()
+    if any(agent is not None for agent in trained_agents):
+        raise ValueError("--ray runs the rule policies only (a trained agent does not travel to Ray workers): add --no-ppo")
     return RayRunner(None if ray == "local" else ray)
