@@ -85,11 +85,13 @@ def canonical(value: Any) -> Any:
 
 
 def model_definition(model: SystemModel) -> dict[str, Any]:
-    """What a model computes with, as canonical JSON data: its bond graph (elements, their kinds and C forms, the
-    bonds in order) and every field of the model but its labels (name, description, units)."""
+    """What a model computes with, as canonical JSON data: its bond graph (elements in their order, their kinds and C
+    forms, the bonds in order) and every field of the model but its labels (name, description, units). The elements'
+    order is kept (canonical sorts mapping keys): it sets the order of the parameters, states and features, so two
+    files listing the same elements in another order train different networks and calibrate thresholds in another order."""
     graph = model.graph
     definition: dict[str, Any] = {
-        "elements": {name: canonical(element) for name, element in graph.elements.items()},
+        "elements": [[name, canonical(element)] for name, element in graph.elements.items()],
         "bonds": [[bond.tail, bond.head] for bond in graph.bonds],
     }
     for field in dataclasses.fields(model):

@@ -8,6 +8,8 @@ time axis last, or a mapping from element name to such arrays.
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, TypeVar, overload
@@ -84,6 +86,8 @@ def _map(
 
 def _interval_activity(power: np.ndarray, sample_period: float) -> np.ndarray:
     """|P| integrated over each sample interval by the trapezoidal rule (J), shape (..., T)."""
+    if not (isinstance(sample_period, (int, float, np.floating)) and math.isfinite(sample_period) and sample_period > 0):
+        raise ValueError(f"sample_period must be a finite number of seconds > 0, got {sample_period!r}")
     if not np.all(np.isfinite(power)):
         raise ValueError("power contains NaN or inf; Energy Activity needs finite signals")
     lead, samples = power.shape[:-1], power.shape[-1]
@@ -148,6 +152,10 @@ def activity_index(ea: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     if not ea:
         raise ValueError("activity_index needs at least one element")
     stacked = np.stack([np.asarray(v, dtype=float) for v in ea.values()])
+    for name, values in zip(ea, stacked):
+        bad = ~(np.isfinite(values) & (values >= 0))
+        if bad.any():
+            raise ValueError(f"activity_index: the EA of {name!r} must be finite and >= 0 J, got {values[bad].flat[0]!r}")
     total = stacked.sum(axis=0)
     safe = np.where(total > 0, total, 1.0)
     shares = np.where(total > 0, stacked / safe, 1.0 / len(ea))

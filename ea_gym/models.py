@@ -23,6 +23,12 @@ class ParameterError(ValueError):
     """A component value or safe limit that is unknown or outside its physical range."""
 
 
+#: how far (as a factor either way) a scenario may move a parameter or a limit from the model's nominal value: the
+#: model's time constants scale with its parameters, and a factor beyond this puts them decades away from the
+#: sample period the model was built for (``"m": 1e-20`` made a 200 m displacement out of a 10 N load)
+MAX_NOMINAL_RATIO = 1e3
+
+
 @dataclass(frozen=True)
 class SystemModel:
     """A physical system ready to simulate.
@@ -75,6 +81,7 @@ class SystemModel:
             self.check_value(key, value, f"nominal value of {key!r}")
         for key, bounds in self.safe_limits.items():
             self.check_limits(key, bounds, f"safe limits of {key!r}")
+            self.check_inside_limits(key, self.nominal[key], bounds, f"nominal value of {key!r}")
 
     @cached_property
     def state_space(self) -> StateSpaceModel:
@@ -144,6 +151,27 @@ class SystemModel:
         if not lower < upper:
             raise ParameterError(f"{what}: lower limit {lower} must be below upper limit {upper}")
 
+    def check_near_nominal(self, name: str, value: float, what: str) -> None:
+        """A positive finite value within MAX_NOMINAL_RATIO of the parameter's nominal value, either way."""
+        self.check_value(name, value, what)
+        nominal = self.nominal[name]
+        if not nominal / MAX_NOMINAL_RATIO <= value <= nominal * MAX_NOMINAL_RATIO:
+            raise ParameterError(
+                f"{what}: {name!r} = {value!r} is more than a factor {MAX_NOMINAL_RATIO:g} from its nominal {nominal:g} "
+                f"{self.units.get(name, '')}".rstrip() + f"; expected a value in [{nominal / MAX_NOMINAL_RATIO:g}, "
+                f"{nominal * MAX_NOMINAL_RATIO:g}] (further away the model's time constants leave the range its sample "
+                "period resolves)"
+            )
+
+    def check_inside_limits(self, name: str, value: float, bounds: tuple[float, float], what: str) -> None:
+        """``value`` strictly inside the safe limits: a component at or beyond them has already failed."""
+        lower, upper = bounds
+        if not lower < value < upper:
+            raise ParameterError(
+                f"{what}: {name!r} = {value!r} is not inside its safe limits [{lower:g}, {upper:g}]; the nominal value "
+                "must lie strictly between them"
+            )
+
     def with_overrides(
         self,
         parameters: Mapping[str, float] | None = None,
@@ -151,14 +179,16 @@ class SystemModel:
     ) -> SystemModel:
         """A copy with some nominal values and safe limits replaced (both checked)."""
         for key, value in (parameters or {}).items():
-            self.check_value(key, value, f"parameters.{key}")
+            self.check_near_nominal(key, value, f"parameters.{key}")
         for key, bounds in (limits or {}).items():
             self.check_limits(key, bounds, f"limits.{key}")
-        return replace(
-            self,
-            nominal={**self.nominal, **(parameters or {})},
-            safe_limits={**self.safe_limits, **{k: (v[0], v[1]) for k, v in (limits or {}).items()}},
-        )
+            for end, bound in zip(("lower", "upper"), bounds):
+                self.check_near_nominal(key, bound, f"limits.{key} ({end})")
+        nominal = {**self.nominal, **(parameters or {})}
+        safe_limits = {**self.safe_limits, **{k: (v[0], v[1]) for k, v in (limits or {}).items()}}
+        for key in {*(parameters or {}), *(limits or {})} & set(safe_limits):
+            self.check_inside_limits(key, nominal[key], safe_limits[key], f"parameters.{key}" if key in (parameters or {}) else f"limits.{key}")
+        return replace(self, nominal=nominal, safe_limits=safe_limits)
 
 
 def spring_mass_damper() -> SystemModel:

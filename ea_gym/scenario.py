@@ -40,10 +40,13 @@ from ea_gym.documents import DocumentError, read_document
 from ea_gym.loads import ConstantLoad, Load, RandomLoad, Sine, SinesLoad
 from ea_gym.model_files import is_model_file, load_system
 from ea_gym.models import ParameterError, SystemModel
+from ea_gym.numerics import MAX_LOAD, MAX_SAMPLES
 
 # Strict: no silent conversion of "10" or true to a number.
 Real = Annotated[float, Strict()]
 Integer = Annotated[int, Strict()]
+# a load value (its unit), bounded so that its powers stay finite
+LoadValue = Annotated[float, Strict(), Field(ge=-MAX_LOAD, le=MAX_LOAD)]
 
 
 class ScenarioError(ValueError):
@@ -66,7 +69,7 @@ class ConstantLoadSpec(_Spec):
     """A constant load of ``value`` (N, V, ...)."""
 
     kind: Literal["constant"]
-    value: Real
+    value: LoadValue
 
     def make(self) -> Load:
         return ConstantLoad(level=self.value)
@@ -75,7 +78,7 @@ class ConstantLoadSpec(_Spec):
 class SineSpec(_Spec):
     """amplitude (load unit) * sin(2 pi frequency (Hz) t + phase (rad))."""
 
-    amplitude: Real
+    amplitude: LoadValue
     frequency: Real = Field(ge=0)
     phase: Real = 0.0
 
@@ -84,7 +87,7 @@ class SinesLoadSpec(_Spec):
     """offset + sum of sines (load unit; frequency in Hz, phase in rad)."""
 
     kind: Literal["sines"]
-    offset: Real = 0.0
+    offset: LoadValue = 0.0
     sines: list[SineSpec]
 
     def make(self) -> Load:
@@ -95,8 +98,8 @@ class RandomLoadSpec(_Spec):
     """A band-limited random load (load unit; bandwidth in Hz) drawn from ``seed``."""
 
     kind: Literal["random"]
-    mean: Real
-    std: Real = Field(ge=0)
+    mean: LoadValue
+    std: Real = Field(ge=0, le=MAX_LOAD)
     bandwidth: Real = Field(gt=0)
     seed: Integer = Field(ge=0)
 
@@ -118,7 +121,7 @@ class FaultFields(_Spec):
 class SensorFields(_Spec):
     """Sensor noise std as a fraction of each measured signal's RMS, and its seed."""
 
-    noise: Real = Field(default=0.0, ge=0)
+    noise: Real = Field(default=0.0, ge=0, lt=1)
     seed: Integer = Field(default=0, ge=0)
 
 
@@ -263,7 +266,12 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
     except ParameterError as exc:
         problems.append(str(exc))
     samples = spec.duration * spec.sample_rate
-    if round(samples) < 1 or not math.isclose(samples, round(samples), rel_tol=1e-9, abs_tol=1e-9):
+    if samples > MAX_SAMPLES:
+        problems.append(
+            f"duration: duration * sample_rate = {samples:g} samples; at most {MAX_SAMPLES} per run "
+            f"(e.g. {MAX_SAMPLES / spec.sample_rate:g} s at {spec.sample_rate:g} Hz)"
+        )
+    elif round(samples) < 1 or not math.isclose(samples, round(samples), rel_tol=1e-9, abs_tol=1e-9):
         problems.append(
             f"duration: duration * sample_rate = {samples!r} must be a whole number (>= 1) of samples"
         )
@@ -278,6 +286,13 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
             f"load.bandwidth: {spec.load.bandwidth!r} Hz must be below the Nyquist frequency "
             f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
         )
+    if isinstance(spec.load, SinesLoadSpec):
+        for i, sine in enumerate(spec.load.sines):
+            if not sine.frequency < spec.sample_rate / 2:
+                problems.append(
+                    f"load.sines[{i}].frequency: {sine.frequency!r} Hz must be below the Nyquist frequency "
+                    f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
+                )
     fault = None
     if spec.fault is not None:
         fault, fault_problems = _fault(model, spec.fault)
@@ -308,7 +323,7 @@ def _fault(model: SystemModel, fields: FaultFields) -> tuple[FaultSpec | None, l
     problems = []
     for i, (_, value) in enumerate(fields.profile):
         try:
-            model.check_value(fields.parameter, value, f"fault.profile[{i}]")
+            model.check_near_nominal(fields.parameter, value, f"fault.profile[{i}]")
         except ParameterError as exc:
             problems.append(str(exc))
     try:

@@ -16,6 +16,7 @@ import torch
 
 import ea_gym.diagnosis.training as training
 import ea_gym.phm.thresholds as thresholds_module
+from ea_gym.bondgraph import BondGraph, Kind
 from ea_gym.cache import CACHE_DIR_VARIABLE, cache_dir, cache_key, model_definition
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
@@ -59,6 +60,22 @@ def test_the_key_follows_what_the_result_depends_on() -> None:
     ]
     assert len({key, *changed}) == 1 + len(changed)
     assert model_definition(get_model("rlc_circuit")) != model_definition(model)
+
+
+def test_the_key_keeps_the_elements_order() -> None:
+    """The same elements listed in another order give other parameter and feature orders: another key."""
+    model = spring_mass_damper()
+    graph = BondGraph()
+    graph.add("F", Kind.SE).add("v", Kind.ONE)
+    graph.add("k", Kind.C, c_form="stiffness").add("m", Kind.I).add("b", Kind.R)
+    for element in ("k", "m", "b"):
+        graph.connect("v", element)
+    graph.connect("F", "v")
+    reordered = dataclasses.replace(model, graph=graph)
+    del reordered.__dict__["state_space"]  # replace copies the cached state space of the original graph
+    assert reordered.parameter_names != model.parameter_names
+    rng = np.random.default_rng(0)
+    assert calibration_key(reordered, SHORT, rng) != calibration_key(model, SHORT, rng)
 
 
 def test_canonical_keys_refuse_what_they_cannot_write() -> None:

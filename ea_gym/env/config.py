@@ -9,9 +9,14 @@ from typing import Any
 
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
+from ea_gym.numerics import MAX_SAMPLES
 from ea_gym.phm import PHMConfig
 
 OBS_MODES = ("phm", "sensors", "oracle")
+#: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
+MAX_STEP_SECONDS = 1e7
+#: most steps of an episode: the environment keeps per-step records, and no maintenance horizon needs more
+MAX_HORIZON = 10**7
 
 
 @dataclass(frozen=True)
@@ -56,14 +61,22 @@ class EnvConfig:
             _check_positive(name, getattr(self, name))
         if self.window_seconds is not None:
             _check_positive("window_seconds", self.window_seconds)
+        if self.step_seconds > MAX_STEP_SECONDS:
+            raise ValueError(f"step_seconds must be at most {MAX_STEP_SECONDS:g} s, got {self.step_seconds!r}")
+        if self.window * self.sample_rate > MAX_SAMPLES:
+            field_name = "step_seconds" if self.window_seconds is None else "window_seconds"
+            raise ValueError(
+                f"{field_name} * sample_rate = {self.window * self.sample_rate:g} samples per step; at most {MAX_SAMPLES} "
+                f"(a window of at most {MAX_SAMPLES / self.sample_rate:g} s at {self.sample_rate:g} Hz)"
+            )
         if not (_is_number(self.noise) and 0 <= self.noise < 1):
             raise ValueError(f"noise must be in [0, 1), got {self.noise!r}")
-        if not (isinstance(self.horizon, int) and not isinstance(self.horizon, bool) and self.horizon > 0):
-            raise ValueError(f"horizon must be a positive int, got {self.horizon!r}")
+        if not (isinstance(self.horizon, int) and not isinstance(self.horizon, bool) and 0 < self.horizon <= MAX_HORIZON):
+            raise ValueError(f"horizon must be an int in [1, {MAX_HORIZON}], got {self.horizon!r}")
         if self.obs_mode not in OBS_MODES:
             raise ValueError(f"obs_mode must be one of {OBS_MODES}, got {self.obs_mode!r}")
         if not isinstance(self.costs, CostModel):
-            raise TypeError(f"costs must be a CostModel, got {type(self.costs).__name__}")
+            raise TypeError(f"costs must be a CostModel or a dict of its fields, got {type(self.costs).__name__}")
         if self.wear is not None and not (
             isinstance(self.wear, dict) and all(isinstance(k, str) and isinstance(v, WearConfig) for k, v in self.wear.items())
         ):
@@ -92,7 +105,8 @@ class EnvConfig:
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
     """``config`` (default ``EnvConfig()``) with keyword overrides, each the name of a field.
 
-    ``costs=None`` stands for the default cost model (the environments' keyword has always allowed it).
+    ``costs=None`` stands for the default cost model (the environments' keyword has always allowed it); a dict
+    of CostModel's fields for that cost model.
     """
     if config is not None and not isinstance(config, EnvConfig):
         raise TypeError(f"config must be an EnvConfig or None, got {type(config).__name__}")
@@ -102,8 +116,21 @@ def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
         raise TypeError(f"unexpected keyword argument {unknown[0]!r}: not an environment setting ({', '.join(names)})")
     if "costs" in overrides and overrides["costs"] is None:
         overrides["costs"] = CostModel()
+    elif isinstance(overrides.get("costs"), dict):
+        overrides["costs"] = cost_model(overrides["costs"])
     base = config if config is not None else EnvConfig()
     return dataclasses.replace(base, **overrides) if overrides else base
+
+
+def cost_model(fields: dict[Any, Any]) -> CostModel:
+    """The CostModel of a dict of its fields; a one-line error names an unknown field or a wrong value."""
+    names = [f.name for f in dataclasses.fields(CostModel)]
+    for key, value in fields.items():
+        if key not in names:
+            raise TypeError(f"costs: unknown field {key!r}; CostModel's fields are {', '.join(names)}")
+        if not _is_number(value):
+            raise TypeError(f"costs: {key} must be a number, got {value!r}")
+    return CostModel(**fields)
 
 
 def _is_number(value: Any) -> bool:

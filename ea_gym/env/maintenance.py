@@ -131,22 +131,28 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
         self.action_space = spaces.Discrete(len(self.action_meanings))
         self.observation_space = cast(spaces.Space[Observation], self.core.observer.space())
         self._history: list[dict[str, Any]] = []
+        self._episode_over = True  # no episode before the first reset
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Observation, dict[str, Any]]:
         super().reset(seed=seed)
         observation = self.core.reset([self.np_random])
         self._history = []
+        self._episode_over = False
         return _first(observation), self.core.reset_info().system(0)
 
     def step(self, action: SupportsInt) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
-        if not self.action_space.contains(action):
+        if self._episode_over:
+            raise RuntimeError("step() needs reset() first: before the first reset and after an episode ends (terminated or truncated)")
+        if isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action):
             raise ValueError(f"action must be an int in [0, {len(self.actions) - 1}] ({self.action_meanings}), got {action!r}")
         result = self.core.step(np.array([int(action)]), [self.np_random])
         observation = _first(result.observation)
         info = result.info.system(0)
         self._history.append({"observation": observation, "info": info, "action": int(action)})
         del self._history[:-120]
-        return observation, float(result.reward[0]), bool(result.terminated[0]), bool(result.truncated[0]), info
+        terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
+        self._episode_over = terminated or truncated
+        return observation, float(result.reward[0]), terminated, truncated, info
 
     def render(self) -> str | np.ndarray | None:
         if self.render_mode is None:

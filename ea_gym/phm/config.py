@@ -63,6 +63,12 @@ class PHMConfig:
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
 
     def __post_init__(self) -> None:
+        samples = self.step * self.sample_rate
+        if not (samples > 0.5 and abs(samples - round(samples)) <= 1e-9 * max(1.0, samples)):
+            raise ValueError(
+                f"sample_rate: {self.sample_rate:g} Hz gives {samples:g} samples per {self.step:g} s step of the PHM chain; "
+                f"expected a whole number >= 1 of samples per step (a multiple of {1 / self.step:g} Hz)"
+            )
         if self.estimator_kind not in ESTIMATORS:
             raise ValueError(f"estimator_kind must be one of {', '.join(sorted(ESTIMATORS))}, got {self.estimator_kind!r}")
 
