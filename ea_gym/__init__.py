@@ -8,18 +8,42 @@ The top level gives the main entry points::
     eai = ea_gym.activity_index({name: ea[name] for name in scenario.model.rco_elements})
 """
 
+from __future__ import annotations
+
+import importlib
+from typing import TYPE_CHECKING, Any
+
 import ea_gym.env  # noqa: F401 - registers the Gymnasium environments
-from ea_gym.energy import (
-    EnergyActivityAccumulator,
-    activity_index,
-    constitutive_power,
-    cumulative_energy_activity,
-    energy_activity,
-    windowed_energy,
-)
-from ea_gym.models import MODELS, ParameterError, SystemModel, get_model
-from ea_gym.plant import Trajectory, run_model, simulate
-from ea_gym.scenario import Scenario, ScenarioError, load_scenario
+
+if TYPE_CHECKING:
+    from ea_gym.energy import (
+        EnergyActivityAccumulator,
+        activity_index,
+        constitutive_power,
+        cumulative_energy_activity,
+        energy_activity,
+        windowed_energy,
+    )
+    from ea_gym.models import MODELS, ParameterError, SystemModel, get_model
+    from ea_gym.plant import Trajectory, run_model, simulate
+    from ea_gym.scenario import Scenario, ScenarioError, load_scenario
+
+# imported on first use: ``ea-gym`` reads and refuses a bad file before the numerical kernels (numba, scipy) load
+_WHERE = {
+    **dict.fromkeys(
+        ("EnergyActivityAccumulator", "activity_index", "constitutive_power", "cumulative_energy_activity", "energy_activity",
+         "windowed_energy"), "ea_gym.energy"),
+    **dict.fromkeys(("MODELS", "ParameterError", "SystemModel", "get_model"), "ea_gym.models"),
+    **dict.fromkeys(("Trajectory", "run_model", "simulate"), "ea_gym.plant"),
+    **dict.fromkeys(("Scenario", "ScenarioError", "load_scenario"), "ea_gym.scenario"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _WHERE:
+        raise AttributeError(f"module 'ea_gym' has no attribute {name!r}")
+    return getattr(importlib.import_module(_WHERE[name]), name)
+
 
 __version__ = "0.1.0"
 

@@ -3,30 +3,49 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NoReturn
 
 from ea_gym.cli_args import COMMAND_GROUP, Subcommands, non_negative_float, positive_float
-from ea_gym.models import ParameterError, SystemModel
-from ea_gym.scenario import ScenarioError
+from ea_gym.models import SystemModel
 
 if TYPE_CHECKING:
     from ea_gym.scenario import Scenario
 
 
 def _simulate(args: argparse.Namespace) -> int:
+    from ea_gym.files import check_output_directory, staged_output
     from ea_gym.scenario import load_scenario
 
     if args.out is None and args.csv is None:
-        raise ValueError("simulate: give --out DIR (Energy Activity) or --csv FILE (measurements), or both")
-    scenario = load_scenario(args.scenario, args.system)
-    if args.csv is not None:
-        _write_measurements(scenario, Path(args.csv))
+        raise ValueError("give --out DIR (Energy Activity) or --csv FILE (measurements), or both")
     if args.out is not None:
-        _write_energy(scenario, Path(args.out), args.window)
+        check_output_directory(args.out)
+    if args.csv is not None:
+        check_output_directory(Path(args.csv).parent / ".")
+        if Path(args.csv).is_dir():
+            raise ValueError(f"--csv: {args.csv} is a directory; expected a file to write")
+    scenario = load_scenario(args.scenario, args.system)
+    from ea_gym.energy import window_samples  # the numerical kernels, once the file is valid
+
+    if args.out is not None:
+        if args.window > scenario.duration:
+            raise ValueError(f"--window: {args.window:g} s is longer than the run ({scenario.duration:g} s); expected at most the scenario's duration")
+        try:
+            window_samples(args.window, 1.0 / scenario.sample_rate)
+        except ValueError as error:
+            raise ValueError(f"--window: {error}") from None
+    with contextlib.ExitStack() as stack:  # the CSV and the directory appear together, or neither
+        if args.out is not None:
+            _write_energy(scenario, stack.enter_context(staged_output(args.out)), args.window)
+        if args.csv is not None:
+            _write_measurements(scenario, Path(args.csv))
+    if args.out is not None:
+        print(f"wrote {Path(args.out) / 'energy.json'} and {Path(args.out) / 'energy.png'} (windows of {args.window:g} s)")
     return 0
 
 
@@ -58,7 +77,6 @@ def _write_energy(scenario: Scenario, out: Path, window: float) -> None:
             elements[name]["eai"] = energy.eai[name].tolist()
     plot_energy(trajectory, energy, out / "energy.png")
     write_json(out / "energy.json", {"window": window, "t": energy.t.tolist(), "elements": elements})
-    print(f"wrote {out / 'energy.json'} and {out / 'energy.png'} ({len(energy.t)} windows of {window:g} s)")
 
 
 def _progress(steps: Iterable[int]) -> Iterable[int]:
@@ -68,23 +86,29 @@ def _progress(steps: Iterable[int]) -> Iterable[int]:
 
 
 def _phm(args: argparse.Namespace) -> int:
+    from ea_gym.files import check_output_directory
+
     if (args.scenario is None) == (args.measurements is None):
         raise ValueError("give a SCENARIO to simulate or --measurements DATA.csv (with --system), one of them")
+    check_output_directory(args.out)
     if args.measurements is not None:
         return _phm_measurements(args)
     if args.noise is not None or args.seed is not None:
         raise ValueError(f"{'--noise' if args.noise is not None else '--seed'} goes with --measurements; a scenario names its sensor noise and seed")
+    from ea_gym.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario, args.system)  # before the chain's heavy imports: a bad file is refused at once
+    model = scenario.model
+    model.check_degradable()
+
     import numpy as np
 
     from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_scenario
     from ea_gym.reporting import write_phm_outputs
-    from ea_gym.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario, args.system)
     rng = np.random.default_rng(scenario.sensor_seed)
-    model = scenario.model
-    classifier = classifier_for(model, args.classifier)
     config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
+    classifier = classifier_for(model, args.classifier)
     chain = build_chain(model, config, classifier, rng)
     run = run_scenario(scenario, chain, rng, progress=_progress)
     results = write_phm_outputs(Path(args.out), run, chain, scenario, f"PHM chain on {args.scenario}")
@@ -153,6 +177,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     if args.system is None:
         raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
     model = load_system(args.system)
+    model.check_degradable()
     measurements = read_measurements(args.measurements, model)
     check_duration(measurements, PHMConfig(sample_rate=measurements.sample_rate))  # before the calibration and the network
     # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
@@ -187,6 +212,7 @@ def _train_isolation(args: argparse.Namespace) -> int:
     from ea_gym.model_files import load_system
 
     model = load_system(args.system)
+    model.check_degradable()
     cached = cached_isolation_path(model)
     had = cached.is_file()
     classifier = isolation_network(model)
@@ -200,20 +226,24 @@ def _train_isolation(args: argparse.Namespace) -> int:
 
 def _reproduce(args: argparse.Namespace) -> int:
     from ea_gym.diagnosis.classifier import FaultClassifier
+    from ea_gym.files import check_output_directory, staged_output
     from ea_gym.reproduce import headline, reproduce
 
+    check_output_directory(args.out)
     classifier = None if args.classifier is None else FaultClassifier.load(args.classifier)
-    summary = reproduce(Path(args.out), classifier, seed=args.seed)
+    with staged_output(args.out, last="results.json") as staging:
+        summary = reproduce(staging, classifier, seed=args.seed)
     print(f"{headline(summary)}; {summary['wall_time_s']} s; wrote {args.out}/report.md")
     return 0
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``ea-gym`` parser: its own subcommands, then those of the ``ea_gym.commands`` entry points (train, benchmark)."""
-    parser = argparse.ArgumentParser(
+    parser = _OneLineParser(
         prog="ea-gym",
         description="Energy-Activity prognostics and health management on bond-graph models.",
     )
+    parser.add_argument("--debug", action="store_true", help="on an error, show the traceback too")
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     _add_simulate(commands)
     _add_phm(commands)
@@ -349,13 +379,30 @@ def _add_train_isolation(commands: Subcommands) -> None:
     train.set_defaults(run=_train_isolation)
 
 
+class _OneLineParser(argparse.ArgumentParser):
+    """An argument parser whose errors are one line on stderr (with where to find the usage), exit code 2."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def error_line(error: BaseException) -> str:
+    """An error's message on one line: a multi-line message (a scenario's problems) joined with '; '."""
+    if isinstance(error, OSError) and error.strerror:
+        return f"{error.filename}: {error.strerror}" if error.filename else error.strerror
+    head, *rest = [line.strip() for line in str(error).splitlines() if line.strip()] or [type(error).__name__]
+    return " ".join([head, "; ".join(rest)]) if rest else head
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
         return args.run(args)
-    except (ScenarioError, ParameterError, ValueError) as error:
-        print(f"ea-gym {args.command}: error: {error}", file=sys.stderr)
+    except (ValueError, TypeError, OSError) as error:  # bad input (ScenarioError, ParameterError, ...): one line, exit 2
+        if args.debug:
+            raise
+        print(f"ea-gym {args.command}: error: {error_line(error)}", file=sys.stderr)
         return 2
 
 

@@ -1,12 +1,15 @@
-"""Results files that appear whole or not at all: written to a temporary sibling, then renamed."""
+"""Results files that appear whole or not at all: written to a temporary sibling, then renamed; a command's
+output directory staged beside it and moved into place together."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
+import shutil
 import tempfile
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, SupportsFloat
 
@@ -29,6 +32,85 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], object]) -
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+class OutputError(ValueError):
+    """An output directory that cannot be written; the message names it and says why."""
+
+
+def check_output_directory(out: str | os.PathLike[str]) -> None:
+    """Refuse, before any work, an output directory that cannot be written: an existing file, a path under a file, or
+    a directory whose nearest existing ancestor is not writable; raises OutputError naming it."""
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out} is an existing file; expected a directory (existing or to create)")
+    existing = next(path for path in out.parents if path.exists() or path == Path(path.anchor))
+    if not existing.is_dir():
+        raise OutputError(f"cannot write {out}: {existing} is a file, not a directory")
+    for directory in (existing, out) if out.exists() else (existing,):  # the staging directory goes beside out
+        if not os.access(directory, os.W_OK | os.X_OK):
+            raise OutputError(f"cannot write {out}: {directory} is not writable")
+
+
+def _missing_parents(directory: Path) -> list[Path]:
+    """The ancestors of ``directory`` (itself included) that do not exist yet, outermost first."""
+    missing = []
+    for path in (directory, *directory.parents):
+        if path.exists():
+            break
+        missing.append(path)
+    return missing[::-1]
+
+
+@contextlib.contextmanager
+def staged_output(out: str | os.PathLike[str], last: str | None = None) -> Iterator[Path]:
+    """A temporary directory beside ``out`` for a command to write its outputs in; when the block succeeds they move
+    into ``out`` together (a rename of the whole directory when ``out`` does not exist yet), when it fails nothing
+    is left: neither the staging directory nor the parent directories it created.
+
+    ``last``: a file (e.g. ``results.json``) removed from an existing ``out`` first and moved in last, so that
+    its presence means the directory is complete.
+
+    Raises:
+        OutputError: ``out`` is an existing file, lies under a file, or its parent cannot be written.
+    """
+    out = Path(out)
+    check_output_directory(out)
+    created = _missing_parents(out.parent)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    except OSError as error:
+        _remove_created(created)
+        raise OutputError(f"cannot write {out}: {error.strerror or error}") from None
+    try:
+        yield staging
+        _move_in(staging, out, last)
+    except BaseException:
+        shutil.rmtree(staging, ignore_errors=True)
+        _remove_created(created)
+        raise
+
+
+def _move_in(staging: Path, out: Path, last: str | None) -> None:
+    if not out.exists():
+        os.replace(staging, out)
+        return
+    if last is not None:
+        (out / last).unlink(missing_ok=True)
+    entries = sorted(staging.iterdir(), key=lambda path: path.name == last)
+    for path in entries:
+        target = out / path.name
+        if target.is_dir() and path.is_dir():
+            shutil.rmtree(target)
+        os.replace(path, target)
+    staging.rmdir()
+
+
+def _remove_created(created: list[Path]) -> None:
+    for path in reversed(created):
+        with contextlib.suppress(OSError):
+            path.rmdir()
 
 
 def write_json(path: str | os.PathLike[str], data: Any) -> Path:

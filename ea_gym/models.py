@@ -151,6 +151,15 @@ class SystemModel:
         if not lower < upper:
             raise ParameterError(f"{what}: lower limit {lower} must be below upper limit {upper}")
 
+    def check_degradable(self) -> None:
+        """Refuse a model with no degradable parameter (no safe limits): the PHM chain and the environments isolate
+        and track the parameters that have limits."""
+        if not self.safe_limits:
+            raise ParameterError(
+                f"system {self.name!r} has no degradable parameter: the PHM chain and the environments need at least one "
+                "parameter with safe limits ('limits' in the model file or the scenario)"
+            )
+
     def check_near_nominal(self, name: str, value: float, what: str) -> None:
         """A positive finite value within MAX_NOMINAL_RATIO of the parameter's nominal value, either way."""
         self.check_value(name, value, what)

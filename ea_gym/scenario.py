@@ -30,17 +30,19 @@ import os
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, Strict, ValidationError
 
 from ea_gym.degradation import PiecewiseLinearProfile, ProfileError
 from ea_gym.documents import DocumentError, read_document
-from ea_gym.loads import ConstantLoad, Load, RandomLoad, Sine, SinesLoad
 from ea_gym.model_files import is_model_file, load_system
 from ea_gym.models import ParameterError, SystemModel
 from ea_gym.numerics import MAX_LOAD, MAX_SAMPLES
+
+if TYPE_CHECKING:
+    from ea_gym.loads import Load
 
 # Strict: no silent conversion of "10" or true to a number.
 Real = Annotated[float, Strict()]
@@ -72,6 +74,8 @@ class ConstantLoadSpec(_Spec):
     value: LoadValue
 
     def make(self) -> Load:
+        from ea_gym.loads import ConstantLoad  # the loads' numerical kernels, once a scenario is valid
+
         return ConstantLoad(level=self.value)
 
 
@@ -91,6 +95,8 @@ class SinesLoadSpec(_Spec):
     sines: list[SineSpec]
 
     def make(self) -> Load:
+        from ea_gym.loads import Sine, SinesLoad
+
         return SinesLoad(self.offset, tuple(Sine(s.amplitude, s.frequency, s.phase) for s in self.sines))
 
 
@@ -104,6 +110,8 @@ class RandomLoadSpec(_Spec):
     seed: Integer = Field(ge=0)
 
     def make(self) -> Load:
+        from ea_gym.loads import RandomLoad
+
         return RandomLoad.draw(self.mean, self.std, self.bandwidth, np.random.default_rng(self.seed))
 
 

@@ -180,7 +180,7 @@ def test_invalid_action_is_a_clear_error(action):
         ({"obs_mode": "full"}, "obs_mode must be one of"),
         ({"noise": -0.1}, "noise must be in"),
         ({"step_seconds": 0}, "step_seconds must be a positive number"),
-        ({"horizon": 0}, "horizon must be a positive int"),
+        ({"horizon": 0}, "horizon must be an int in"),
         ({"wear": {"q": WearConfig()}}, r"wear: unknown components \['q'\]"),
         ({"render_mode": "rgb"}, "render_mode must be one of"),
         ({"window_seconds": 0.3}, "longer than the smoothing window"),

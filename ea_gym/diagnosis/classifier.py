@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ea_gym.diagnosis.features import VARIANTS
 from ea_gym.files import write_atomic
 from ea_gym.threads import single_threaded_torch
 
@@ -76,6 +77,8 @@ class FaultClassifier:
     def __init__(
         self, classes: Sequence[str], variant: str, n_features: int, hidden: Sequence[int] = (64, 64), weights: dict[str, np.ndarray] | None = None
     ):
+        if variant not in VARIANTS:
+            raise ValueError(f"variant must be one of {', '.join(VARIANTS)} (the feature sets), got {variant!r}")
         self.classes = tuple(classes)
         self.variant = variant
         self.hidden = tuple(hidden)

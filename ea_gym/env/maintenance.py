@@ -189,6 +189,7 @@ def build_core(
             raise ValueError(f"system must be one of {sorted(MODELS)}, a model file or a SystemModel: {exc}") from None
     elif not isinstance(system, SystemModel):
         raise TypeError(f"system must be a model name, a model file's path or a SystemModel, got {type(system).__name__}")
+    system.check_degradable()
     settings = env_config(config, **overrides)
     if isinstance(classifier, str):
         classifier = FaultClassifier.load(classifier)

@@ -8,14 +8,12 @@ something fails.
 from __future__ import annotations
 
 import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ea_gym.files import write_json, write_text
+from ea_gym.files import staged_output, write_json, write_text
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.reporting.figures import FIGURES, PLOTS, RECORDED_CAPTIONS, TRUTH_FIGURES
 from ea_gym.reporting.results import ALPHA, LAMBDA, chain_results
@@ -158,22 +156,13 @@ def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scena
     succeeded; ``results.json`` is written last, so its presence means the directory is complete.
     Returns the results.
     """
-    out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     results = chain_results(run, chain, scenario, measurements)
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with staged_output(out, last="results.json") as staging:
         figures = {}
         for name, plot in PLOTS.items():
             if scenario is None and name in TRUTH_FIGURES:
                 continue
             figures[name] = plot(run, chain, scenario, staging / FIGURES[name][0], results=results)
         write_phm_report(staging, results, figures, title, sections)
-        out.mkdir(parents=True, exist_ok=True)
-        (out / "results.json").unlink(missing_ok=True)  # the directory is incomplete until it is back
-        for path in sorted(staging.iterdir()):
-            os.replace(path, out / path.name)
-        write_json(out / "results.json", results)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
+        write_json(staging / "results.json", results)
     return results
