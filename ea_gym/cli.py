@@ -34,7 +34,7 @@ def _simulate(args: argparse.Namespace) -> int:
 
     if args.out is not None:
         if args.window > scenario.duration:
-            raise ValueError(f"--window: {args.window:g} s is longer than the run ({scenario.duration:g} s); expected at most the scenario's duration")
+            raise ValueError(f"--window: {args.window:g} s is longer than the run ({scenario.duration:g} s); expected at most its duration")
         try:
             window_samples(args.window, 1.0 / scenario.sample_rate)
         except ValueError as error:

@@ -9,7 +9,6 @@ time axis last, or a mapping from element name to such arrays.
 from __future__ import annotations
 
 import math
-
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Literal, TypeVar, overload
@@ -155,7 +154,7 @@ def activity_index(ea: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     for name, values in zip(ea, stacked):
         bad = ~(np.isfinite(values) & (values >= 0))
         if bad.any():
-            raise ValueError(f"activity_index: the EA of {name!r} must be finite and >= 0 J, got {values[bad].flat[0]!r}")
+            raise ValueError(f"activity_index: the EA of {name!r} must be finite and >= 0 J, got {float(values[bad].flat[0])!r}")
     total = stacked.sum(axis=0)
     safe = np.where(total > 0, total, 1.0)
     shares = np.where(total > 0, stacked / safe, 1.0 / len(ea))

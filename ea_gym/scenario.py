@@ -273,34 +273,13 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
         model = model.with_overrides(spec.parameters, spec.limits)
     except ParameterError as exc:
         problems.append(str(exc))
-    samples = spec.duration * spec.sample_rate
-    if samples > MAX_SAMPLES:
-        problems.append(
-            f"duration: duration * sample_rate = {samples:g} samples; at most {MAX_SAMPLES} per run "
-            f"(e.g. {MAX_SAMPLES / spec.sample_rate:g} s at {spec.sample_rate:g} Hz)"
-        )
-    elif round(samples) < 1 or not math.isclose(samples, round(samples), rel_tol=1e-9, abs_tol=1e-9):
-        problems.append(
-            f"duration: duration * sample_rate = {samples!r} must be a whole number (>= 1) of samples"
-        )
+    problems += _sampling_problems(spec)
     for key in spec.initial_state:
         if key not in model.state_names:
             problems.append(
                 f"initial_state.{key}: unknown state {key!r} for system {model.name!r}; "
                 f"valid states are {list(model.state_names)}"
             )
-    if isinstance(spec.load, RandomLoadSpec) and not spec.load.bandwidth < spec.sample_rate / 2:
-        problems.append(
-            f"load.bandwidth: {spec.load.bandwidth!r} Hz must be below the Nyquist frequency "
-            f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
-        )
-    if isinstance(spec.load, SinesLoadSpec):
-        for i, sine in enumerate(spec.load.sines):
-            if not sine.frequency < spec.sample_rate / 2:
-                problems.append(
-                    f"load.sines[{i}].frequency: {sine.frequency!r} Hz must be below the Nyquist frequency "
-                    f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
-                )
     fault = None
     if spec.fault is not None:
         fault, fault_problems = _fault(model, spec.fault)
@@ -321,6 +300,35 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
         source=name,
         spec=spec,
     )
+
+
+def _sampling_problems(spec: ScenarioSpec) -> list[str]:
+    """The run's sample count (whole, at most MAX_SAMPLES, checked before anything is allocated) and every load
+    frequency below Nyquist."""
+    problems = []
+    samples = spec.duration * spec.sample_rate
+    if samples > MAX_SAMPLES:
+        problems.append(
+            f"duration: duration * sample_rate = {samples:g} samples; at most {MAX_SAMPLES} per run "
+            f"(e.g. {MAX_SAMPLES / spec.sample_rate:g} s at {spec.sample_rate:g} Hz)"
+        )
+    elif round(samples) < 1 or not math.isclose(samples, round(samples), rel_tol=1e-9, abs_tol=1e-9):
+        problems.append(
+            f"duration: duration * sample_rate = {samples!r} must be a whole number (>= 1) of samples"
+        )
+    if isinstance(spec.load, RandomLoadSpec) and not spec.load.bandwidth < spec.sample_rate / 2:
+        problems.append(
+            f"load.bandwidth: {spec.load.bandwidth!r} Hz must be below the Nyquist frequency "
+            f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
+        )
+    if isinstance(spec.load, SinesLoadSpec):
+        for i, sine in enumerate(spec.load.sines):
+            if not sine.frequency < spec.sample_rate / 2:
+                problems.append(
+                    f"load.sines[{i}].frequency: {sine.frequency!r} Hz must be below the Nyquist frequency "
+                    f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
+                )
+    return problems
 
 
 def _fault(model: SystemModel, fields: FaultFields) -> tuple[FaultSpec | None, list[str]]:

@@ -31,7 +31,11 @@ if TYPE_CHECKING:
     )
 
 # the simulation (numba kernels) is imported on first use: a model is read and checked without it
-_SIMULATION = ("HOLD_ORDER", "Discretization", "ModelMatrices", "discretize", "expm", "hermite_coefficients", "matrices_along", "propagate", "simulate_batch", "simulate_linear", "simulate_measured", "unique_rows")
+_SIMULATION = (
+    "HOLD_ORDER", "Discretization", "ModelMatrices",
+    "discretize", "expm", "hermite_coefficients", "matrices_along",
+    "propagate", "simulate_batch", "simulate_linear", "simulate_measured", "unique_rows",
+)
 
 
 def __getattr__(name: str) -> Any:

@@ -134,7 +134,10 @@ def cost_model(fields: dict[Any, Any]) -> CostModel:
 
 
 def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    """A finite int or float, not a bool (an int beyond the float range is not finite)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return False
+    return abs(value) < 1e308 if isinstance(value, int) else math.isfinite(value)
 
 
 def _check_positive(name: str, value: Any) -> None:

@@ -1,0 +1,322 @@
+"""Bad inputs, one table: each case is the input and a fragment of the message it must be refused with.
+
+Command-line cases also check the refusal's form: exit code 2, one line on stderr (``ea-gym CMD: error: ...``), no
+traceback, and nothing written. The README states how many cases this table holds (``test_readme_states_the_count``).
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import math
+import os
+import subprocess
+import sys
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+import ea_gym.files
+from ea_gym.cli import main
+from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.energy import activity_index, energy_activity
+from ea_gym.env.maintenance import BondGraphMaintenanceEnv
+from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
+
+GOOD = {"system": "spring_mass_damper", "load": {"kind": "constant", "value": 10.0}, "duration": 10.0, "sample_rate": 100.0}
+
+NO_LIMITS_MODEL = """\
+name: smd_no_limits
+elements:
+  F: {kind: Se, unit: N}
+  v: {kind: "1"}
+  m: {kind: I, value: 10.0, unit: kg}
+  k: {kind: C, form: stiffness, value: 100.0, unit: N/m}
+  b: {kind: R, value: 0.5, unit: N s/m}
+bonds: [[v, m], [v, k], [v, b], [F, v]]
+load: {source: F, nominal: 10.0, bandwidth: 2.0}
+"""
+
+
+def scenario(**changes: Any) -> dict[str, Any]:
+    return {**GOOD, **changes}
+
+
+def _write(path: Path, content: Any) -> Path:
+    path.write_text(content if isinstance(content, str) else json.dumps(content))
+    return path
+
+
+# Each command-line case: (id, a function making the files in a directory and returning the arguments, message fragment).
+Setup = Callable[[Path], list[str]]
+
+
+def _scenario_case(data: Any, command: str = "simulate", *extra: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        return [command, str(_write(tmp / "bad.json", data)), "--out", str(tmp / "out"), *extra]
+
+    return setup
+
+
+def _fifo(tmp: Path) -> list[str]:
+    os.mkfifo(tmp / "x.json")
+    return ["simulate", str(tmp / "x.json"), "--out", str(tmp / "out")]
+
+
+def _deep(tmp: Path) -> list[str]:
+    return ["simulate", str(_write(tmp / "deep.json", "[" * 200_000 + "]" * 200_000)), "--out", str(tmp / "out")]
+
+
+def _out_at(where: Callable[[Path], Path]) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        return ["simulate", str(_write(tmp / "ok.json", GOOD)), "--out", str(where(tmp))]
+
+    return setup
+
+
+def _existing_file(tmp: Path) -> Path:
+    return _write(tmp / "taken", "a file")
+
+
+def _under_a_file(tmp: Path) -> Path:
+    return _write(tmp / "taken", "a file") / "out"
+
+
+def _classifier(make: Callable[[Path], Path]) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        return ["phm", str(_write(tmp / "ok.json", GOOD)), "--out", str(tmp / "out"), "--classifier", str(make(tmp))]
+
+    return setup
+
+
+def _torch_dict_without_classes(tmp: Path) -> Path:
+    import torch
+
+    torch.save({"variant": "strong"}, tmp / "net.pt")
+    return tmp / "net.pt"
+
+
+def _no_limits(command: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        _write(tmp / "model.yaml", NO_LIMITS_MODEL)
+        return [command, str(_write(tmp / "s.json", scenario(system="model.yaml"))), "--out", str(tmp / "out")]
+
+    return setup
+
+
+CLI_CASES: list[tuple[str, Setup, str]] = [
+    ("duration 1e9", _scenario_case(scenario(duration=1e9)), "at most 1000000 per run"),
+    ("sample_rate 1e7", _scenario_case(scenario(sample_rate=1e7)), "at most 1000000 per run"),
+    ("1e6 Hz over 10 s", _scenario_case(scenario(sample_rate=1e6)), "at most 1000000 per run"),
+    ("/dev/zero", lambda tmp: ["simulate", "/dev/zero", "--out", str(tmp / "out")], "not a regular file"),
+    ("a FIFO named x.json", _fifo, "not a regular file"),
+    ("JSON nested 200,000 deep", _deep, "nests deeper than 32 levels"),
+    ("1000 Hz sine at 100 Hz", _scenario_case(scenario(load={"kind": "sines", "sines": [{"amplitude": 1.0, "frequency": 1000.0}]})),
+     "load.sines[0].frequency: 1000.0 Hz must be below the Nyquist frequency"),
+    ("m = 1e-20", _scenario_case(scenario(parameters={"m": 1e-20})), "parameters.m: 'm' = 1e-20 is more than a factor 1000"),
+    ("fault profile at 1e6 x nominal", _scenario_case(scenario(fault={"parameter": "k", "profile": [[0, 100], [5, 1e8]]})),
+     "fault.profile[1]"),
+    ("sensor noise 1e6", _scenario_case(scenario(sensors={"noise": 1e6})), "sensors.noise: Input should be less than 1"),
+    ("limits excluding the nominal", _scenario_case(scenario(limits={"k": [200, 300]})), "limits.k: 'k' = 100.0 is not inside its safe limits"),
+    ("parameter outside its limits", _scenario_case(scenario(parameters={"k": 120.0})), "parameters.k: 'k' = 120.0 is not inside"),
+    ("load 1e300", _scenario_case(scenario(load={"kind": "constant", "value": 1e300})),
+     "load.value: Input should be less than or equal to 1000000000"),
+    ("sine amplitude 1e300", _scenario_case(scenario(load={"kind": "sines", "sines": [{"amplitude": 1e300, "frequency": 1.0}]})),
+     "load.sines[0].amplitude"),
+    ("phm at 0.1 Hz", _scenario_case(scenario(sample_rate=0.1, duration=100.0), "phm"), "sample_rate: 0.1 Hz gives 0.1 samples per 1 s step"),
+    ("phm on a bad scenario", _scenario_case(scenario(duration=-1.0), "phm"), "duration: Input should be greater than 0"),
+    ("simulate --window 1e9", _scenario_case(GOOD, "simulate", "--window", "1e9"), "--window: 1e+09 s is longer than the run (10 s); expected at most its duration"),
+    ("simulate --window 0.015", _scenario_case(GOOD, "simulate", "--window", "0.015"), "--window: window = 0.015 s must be a positive whole number"),
+    ("simulate --window -1", _scenario_case(GOOD, "simulate", "--window", "-1"), "argument --window: expected a positive number"),
+    ("simulate without --out or --csv", lambda tmp: ["simulate", str(_write(tmp / "ok.json", GOOD))], "give --out DIR"),
+    ("--out at an existing file", _out_at(_existing_file), "is an existing file; expected a directory"),
+    ("--out under a file", _out_at(_under_a_file), "is a file, not a directory"),
+    ("--classifier at a text file", _classifier(lambda tmp: _write(tmp / "net.pt", "not a network")), "not an isolation network"),
+    ("--classifier without classes", _classifier(_torch_dict_without_classes), "not an isolation network (KeyError: 'classes')"),
+    ("--classifier missing", _classifier(lambda tmp: tmp / "absent.pt"), "absent.pt: not an isolation network"),
+    ("phm on a model without limits", _no_limits("phm"), "has no degradable parameter"),
+    ("--window abc", lambda tmp: ["simulate", "x.json", "--window", "abc"], "argument --window: invalid positive_float value: 'abc'"),
+]
+
+
+def _snapshot(directory: Path) -> set[str]:
+    return {str(path.relative_to(directory)) for path in directory.rglob("*")}
+
+
+@pytest.mark.parametrize("setup, fragment", [case[1:] for case in CLI_CASES], ids=[case[0] for case in CLI_CASES])
+def test_a_bad_command_line_is_one_clean_line(setup: Setup, fragment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                              monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.chdir(tmp_path)
+    argv = setup(tmp_path)
+    before = _snapshot(tmp_path)
+    try:
+        code: object = main(argv)
+    except SystemExit as exit_:  # argparse's refusals
+        code = exit_.code
+    stderr = capsys.readouterr().err
+    assert code == 2
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1, stderr
+    assert lines[0].startswith(f"ea-gym {argv[0]}: error: ")
+    assert fragment in lines[0]
+    assert "Traceback" not in stderr
+    assert _snapshot(tmp_path) == before  # nothing written
+
+
+def test_debug_shows_the_traceback(tmp_path: Path) -> None:
+    bad = _write(tmp_path / "bad.json", scenario(duration=1e9))
+    with pytest.raises(ValueError, match="at most 1000000 per run"):
+        main(["--debug", "simulate", str(bad), "--out", str(tmp_path / "out")])
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
+def test_an_unwritable_out_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o555)
+    assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(locked / "out")]) == 2
+    assert "is not writable" in capsys.readouterr().err
+    assert not any(locked.iterdir())
+
+
+def test_a_full_disk_leaves_nothing_behind(tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """energy.png is drawn, then energy.json cannot be written: neither appears, nor the directories above --out."""
+
+    def full(path: Any, data: Any) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(path))
+
+    monkeypatch.setattr(ea_gym.files, "write_json", full)
+    before = _snapshot(tmp_path)
+    code = main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(tmp_path / "new" / "out")])
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(lines) == 1 and "No space left on device" in lines[0]
+    assert _snapshot(tmp_path) == before | {"ok.json"}
+
+
+def test_outputs_move_into_an_existing_directory_together(tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    _write(out / "notes.txt", "kept")
+    assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(out)]) == 0
+    assert sorted(path.name for path in out.iterdir()) == ["energy.json", "energy.png", "notes.txt"]
+    assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".")] == []  # no staging left
+
+
+def test_a_bad_scenario_is_refused_before_heavy_imports(tmp_path: Path) -> None:
+    """Validation comes first: neither numba, scipy, torch nor Stable-Baselines3 is imported to refuse a bad file."""
+    bad = _write(tmp_path / "bad.json", scenario(duration=1e9))
+    for command in ("simulate", "phm"):
+        code = (
+            "import sys; from ea_gym.cli import main; "
+            f"assert main([{command!r}, {str(bad)!r}, '--out', {str(tmp_path / 'out')!r}]) == 2; "
+            "print(sorted(m for m in ('numba', 'scipy', 'torch', 'stable_baselines3') if m in sys.modules))"
+        )
+        result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+        assert result.stdout.strip() == "[]", (command, result.stdout, result.stderr)
+
+
+def _env(**kwargs: Any) -> BondGraphMaintenanceEnv:
+    return BondGraphMaintenanceEnv(**kwargs)
+
+
+def _stepped_before_reset() -> None:
+    _env(obs_mode="oracle").step(0)
+
+
+def _stepped_after_truncation() -> None:
+    env = _env(obs_mode="oracle", horizon=1)
+    env.reset(seed=0)
+    assert env.step(0)[3]  # truncated
+    env.step(0)
+
+
+def _stepped_after_failure() -> None:
+    env = _env(obs_mode="oracle", step_seconds=1e5, window_seconds=1.0)  # the drift crosses a limit within the first step
+    env.reset(seed=0)
+    assert env.step(0)[2]  # terminated by the failure
+    env.step(0)
+
+
+def _stepped_with(action: Any) -> Callable[[], None]:
+    def step() -> None:
+        env = _env(obs_mode="oracle")
+        env.reset(seed=0)
+        env.step(action)
+
+    return step
+
+
+def _vector_reset(seed: Any) -> None:
+    BondGraphMaintenanceVectorEnv(num_envs=2, obs_mode="oracle").reset(seed=seed)
+
+
+def _no_limits_env(tmp: Path) -> None:
+    _env(system=str(_write(tmp / "model.yaml", NO_LIMITS_MODEL)))
+
+
+def _classifier_variant() -> None:
+    FaultClassifier(["none", "k"], "mystery", 4)
+
+
+# Each API case: (id, a call that must raise, the exception type, message fragment); the call may take tmp_path.
+API_CASES: list[tuple[str, Callable[..., Any], type[Exception], str]] = [
+    ("step before reset", _stepped_before_reset, RuntimeError, "step() needs reset() first"),
+    ("step after truncation", _stepped_after_truncation, RuntimeError, "step() needs reset() first"),
+    ("step after a failure", _stepped_after_failure, RuntimeError, "step() needs reset() first"),
+    ("step(True)", _stepped_with(True), ValueError, "action must be an int in"),
+    ("step(99)", _stepped_with(99), ValueError, "action must be an int in"),
+    ("horizon=True", lambda: _env(horizon=True), ValueError, "horizon must be an int in"),
+    ("horizon=10**9", lambda: _env(horizon=10**9), ValueError, "horizon must be an int in [1, 10000000]"),
+    ('window_seconds="1"', lambda: _env(window_seconds="1"), ValueError, "window_seconds must be a positive number"),
+    ("window_seconds=1e9", lambda: _env(window_seconds=1e9), ValueError, "window_seconds * sample_rate = 1e+11 samples per step"),
+    ("step_seconds=1e9", lambda: _env(step_seconds=1e9), ValueError, "step_seconds must be at most 1e+07 s"),
+    ("sample_rate=True", lambda: _env(sample_rate=True), ValueError, "sample_rate must be a positive number"),
+    ("noise=1.5", lambda: _env(noise=1.5), ValueError, "noise must be in [0, 1)"),
+    ("costs with an unknown field", lambda: _env(costs={"fail": 1.0}), TypeError, "costs: unknown field 'fail'"),
+    ("costs with a text value", lambda: _env(costs={"failure": "high"}), TypeError, "costs: failure must be a number"),
+    ("costs as a list", lambda: _env(costs=[1.0]), TypeError, "costs must be a CostModel or a dict of its fields"),
+    ('render_mode="human"', lambda: _env(render_mode="human"), ValueError, "render_mode must be one of ['rgb_array', 'ansi']"),
+    ('continue_after_failure="no"', lambda: _env(continue_after_failure="no"), TypeError, "continue_after_failure must be a bool"),
+    ("an unknown keyword", lambda: _env(horizn=5), TypeError, "unexpected keyword argument 'horizn'"),
+    ("vector reset(seed=1.5)", lambda: _vector_reset(1.5), TypeError, "seed must be an int, None or a list"),
+    ("vector reset(seed=True)", lambda: _vector_reset(True), TypeError, "seed must be an int, None or a list"),
+    ("an env on a model without limits", _no_limits_env, ValueError, "has no degradable parameter"),
+    ("activity_index with NaN", lambda: activity_index({"m": np.array([math.nan]), "k": np.array([1.0])}), ValueError,
+     "activity_index: the EA of 'm' must be finite and >= 0 J"),
+    ("activity_index with negative EA", lambda: activity_index({"m": np.array([1.0]), "k": np.array([-1.0])}), ValueError,
+     "the EA of 'k' must be finite and >= 0 J, got -1.0"),
+    ("energy_activity with sample_period=0", lambda: energy_activity(np.ones(10), 0.0, window=1.0), ValueError,
+     "sample_period must be a finite number of seconds > 0"),
+    ("a classifier of an unknown variant", _classifier_variant, ValueError, "variant must be one of paper, strong"),
+]
+
+
+@pytest.mark.parametrize("call, kind, fragment", [case[1:] for case in API_CASES], ids=[case[0] for case in API_CASES])
+def test_a_bad_api_call_raises_a_clear_error(call: Callable[..., Any], kind: type[Exception], fragment: str, tmp_path: Path) -> None:
+    with pytest.raises(kind) as info:
+        call(tmp_path) if call.__code__.co_argcount else call()
+    assert fragment in str(info.value)
+
+
+def test_costs_as_a_dict_are_the_cost_model() -> None:
+    env = _env(obs_mode="oracle", costs={"failure": 100.0, "replace_downtime": 2})
+    assert env.config.costs.failure == 100.0 and env.config.costs.replace_downtime == 2
+    assert env.config.costs.replacement == 40.0  # the rest at their defaults
+
+
+def test_continuing_after_a_failure_keeps_stepping() -> None:
+    env = _env(obs_mode="oracle", step_seconds=1e5, window_seconds=1.0, continue_after_failure=True)
+    env.reset(seed=0)
+    _, reward, terminated, _, info = env.step(0)
+    assert info["failed"] and not terminated and info["cost"]["failure"] == 400.0 and reward == -(400.0 + info["cost"]["lost_production"])
+    env.step(0)  # the episode goes on
+
+
+N_CASES = len(CLI_CASES) + len(API_CASES) + 1  # and the full disk
+
+
+def test_readme_states_the_count() -> None:
+    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text().split())
+    assert f"{N_CASES} bad inputs tried, {N_CASES} refused cleanly" in readme
