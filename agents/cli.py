@@ -14,6 +14,7 @@ from typing import Any
 
 from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, TRUST_PICKLE, refuse_pickle
 from ea_gym.cli_args import Subcommands, env_option, non_negative_int, positive_int, system_option
+from ea_gym.files import check_output_directory
 
 __all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent", "BENCHMARK_POLICIES"]
 
@@ -33,6 +34,7 @@ def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _train(args: argparse.Namespace) -> int:
+    check_output_directory(args.out)
     env_kwargs = _env_kwargs(args)
     if args.backend == "rllib":
         return _train_rllib(args, env_kwargs)
@@ -72,6 +74,7 @@ def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
 
 
 def _benchmark(args: argparse.Namespace) -> int:
+    check_output_directory(args.out)
     env_kwargs = _env_kwargs(args)
     from agents.benchmark.run import run_benchmark
 

@@ -128,7 +128,7 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
      "load.sines[0].amplitude"),
     ("phm at 0.1 Hz", _scenario_case(scenario(sample_rate=0.1, duration=100.0), "phm"), "sample_rate: 0.1 Hz gives 0.1 samples per 1 s step"),
     ("phm on a bad scenario", _scenario_case(scenario(duration=-1.0), "phm"), "duration: Input should be greater than 0"),
-    ("simulate --window 1e9", _scenario_case(GOOD, "simulate", "--window", "1e9"), "--window: 1e+09 s is longer than the run (10 s); expected at most its duration"),
+    ("simulate --window 1e9", _scenario_case(GOOD, "simulate", "--window", "1e9"), "--window: 1e+09 s is longer than the run (10 s)"),
     ("simulate --window 0.015", _scenario_case(GOOD, "simulate", "--window", "0.015"), "--window: window = 0.015 s must be a positive whole number"),
     ("simulate --window -1", _scenario_case(GOOD, "simulate", "--window", "-1"), "argument --window: expected a positive number"),
     ("simulate without --out or --csv", lambda tmp: ["simulate", str(_write(tmp / "ok.json", GOOD))], "give --out DIR"),
