@@ -268,7 +268,7 @@ API_CASES: list[tuple[str, Callable[..., Any], type[Exception], str]] = [
     ("step(True)", _stepped_with(True), ValueError, "action must be an int in"),
     ("step(99)", _stepped_with(99), ValueError, "action must be an int in"),
     ("horizon=True", lambda: _env(horizon=True), ValueError, "horizon must be an int in"),
-    ("horizon=10**9", lambda: _env(horizon=10**9), ValueError, "horizon must be an int in [1, 10000000]"),
+    ("horizon=10**10", lambda: _env(horizon=10**10), ValueError, "horizon must be an int in [1, 1000000000]"),
     ('window_seconds="1"', lambda: _env(window_seconds="1"), ValueError, "window_seconds must be a positive number"),
     ("window_seconds=1e9", lambda: _env(window_seconds=1e9), ValueError, "window_seconds * sample_rate = 1e+11 samples per step"),
     ("step_seconds=1e9", lambda: _env(step_seconds=1e9), ValueError, "step_seconds must be at most 1e+07 s"),

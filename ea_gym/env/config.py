@@ -15,8 +15,8 @@ from ea_gym.phm import PHMConfig
 OBS_MODES = ("phm", "sensors", "oracle")
 #: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
 MAX_STEP_SECONDS = 1e7
-#: most steps of an episode: the environment keeps per-step records, and no maintenance horizon needs more
-MAX_HORIZON = 10**7
+#: most steps of an episode (long soaks run with 1e9)
+MAX_HORIZON = 10**9
 
 
 @dataclass(frozen=True)
