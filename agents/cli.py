@@ -9,6 +9,7 @@ stays fast.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 from pathlib import Path
 from typing import Any
 
@@ -30,6 +31,10 @@ def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     kwargs = dict(args.env)
     if args.system is not None:
         kwargs["system"] = system_option(args.system)
+    from ea_gym.env.config import EnvConfig, env_config
+
+    settings = {f.name for f in dataclasses.fields(EnvConfig)}
+    env_config(**{key: value for key, value in kwargs.items() if key in settings})  # a bad value refused before --out is made
     return kwargs
 
 

@@ -138,6 +138,9 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
     ("--classifier without classes", _classifier(_torch_dict_without_classes), "not an isolation network (KeyError: 'classes')"),
     ("--classifier missing", _classifier(lambda tmp: tmp / "absent.pt"), "absent.pt: not an isolation network"),
     ("phm on a model without limits", _no_limits("phm"), "has no degradable parameter"),
+    ("train --out at an existing file", lambda tmp: ["train", "--out", str(_existing_file(tmp))], "is an existing file; expected a directory"),
+    ("benchmark --out under a file", lambda tmp: ["benchmark", "--out", str(_under_a_file(tmp))], "is a file, not a directory"),
+    ("train --env horizon=true", lambda tmp: ["train", "--out", str(tmp / "out"), "--env", "horizon=true"], "horizon must be an int in"),
     ("--window abc", lambda tmp: ["simulate", "x.json", "--window", "abc"], "argument --window: invalid positive_float value: 'abc'"),
 ]
 
