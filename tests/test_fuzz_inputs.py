@@ -20,7 +20,7 @@ from ea_gym.model_files import ModelFileError, load_model_file
 from ea_gym.models import spring_mass_damper
 from ea_gym.scenario import ScenarioError, load_scenario
 
-FUZZ = settings(max_examples=150, deadline=None, derandomize=True, database=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(max_examples=400, deadline=None, derandomize=True, database=None, suppress_health_check=[HealthCheck.too_slow])
 
 NUMBERS = st.one_of(
     st.floats(allow_nan=True, allow_infinity=True), st.integers(min_value=-(10**400), max_value=10**400), st.booleans(),
