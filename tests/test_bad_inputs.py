@@ -286,6 +286,8 @@ API_CASES: list[tuple[str, Callable[..., Any], type[Exception], str]] = [
     ("vector reset(seed=1.5)", lambda: _vector_reset(1.5), TypeError, "seed must be an int, None or a list"),
     ("vector reset(seed=True)", lambda: _vector_reset(True), TypeError, "seed must be an int, None or a list"),
     ("an env on a model without limits", _no_limits_env, ValueError, "has no degradable parameter"),
+    ("classifier=123", lambda: _env(classifier=123), TypeError, "classifier must be a FaultClassifier, a path to one or None, got int"),
+    ("classifier at a missing path", lambda tmp: _env(classifier=tmp / "absent.pt"), ValueError, "absent.pt: not an isolation network"),
     ("activity_index with NaN", lambda: activity_index({"m": np.array([math.nan]), "k": np.array([1.0])}), ValueError,
      "activity_index: the EA of 'm' must be finite and >= 0 J"),
     ("activity_index with negative EA", lambda: activity_index({"m": np.array([1.0]), "k": np.array([-1.0])}), ValueError,

@@ -176,7 +176,7 @@ def build_core(
     n_systems: int,
     system: str | os.PathLike[str] | SystemModel = "spring_mass_damper",
     config: EnvConfig | None = None,
-    classifier: FaultClassifier | str | None = None,
+    classifier: FaultClassifier | str | os.PathLike[str] | None = None,
     **overrides: Any,
 ) -> MaintenanceCore:
     """The step core of N environments from the environments' arguments: the system (a built-in
@@ -191,8 +191,10 @@ def build_core(
         raise TypeError(f"system must be a model name, a model file's path or a SystemModel, got {type(system).__name__}")
     system.check_degradable()
     settings = env_config(config, **overrides)
-    if isinstance(classifier, str):
+    if isinstance(classifier, (str, os.PathLike)):
         classifier = FaultClassifier.load(classifier)
+    elif classifier is not None and not isinstance(classifier, FaultClassifier):
+        raise TypeError(f"classifier must be a FaultClassifier, a path to one or None, got {type(classifier).__name__}")
     return MaintenanceCore(system, settings, n_systems, classifier)
 
 
