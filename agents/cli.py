@@ -49,7 +49,7 @@ def _train(args: argparse.Namespace) -> int:
 
     run = TrainingRun(
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
-        vec_env=args.vec_env, eval_every=args.eval_every, checkpoint_every=args.checkpoint_every, eval_episodes=args.eval_episodes,
+        vec_env=args.vec_env, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
         dagger_rounds=args.dagger_rounds,
     )
@@ -132,10 +132,10 @@ def add_train(commands: Subcommands) -> None:
             "continue_after_failure=True) with normalised "
             "observations and rewards. DIR becomes an agent directory: DIR/agent.json (algorithm, architecture, spaces, "
             "normalisation statistics as numbers), DIR/policy.safetensors and DIR/optimizer.safetensors (weights and "
-            "optimizer state; loading them runs no code from the files), the checkpoint with the best validation reward; "
-            "also DIR/training.json, the latest best policy on held-out validation seeds (DIR/best), checkpoints "
-            "(DIR/checkpoints/ALGO_STEPS_steps, agent directories too), evaluations and, when tensorboard is installed, "
-            "TensorBoard logs (DIR/tensorboard)."
+            "optimizer state; loading them runs no code from the files): of the policies evaluated on held-out validation "
+            "seeds (every --eval-every steps, each checkpointed in DIR/checkpoints/ALGO_STEPS_steps, and the last one, kept in "
+            "DIR/last), the one with the best mean validation reward. DIR/training.json records the run, every evaluation's "
+            "rewards and the step selected; with tensorboard installed, DIR/tensorboard holds the logs."
         ),
     )
     train.add_argument("--algo", choices=["ppo", "dqn", "a2c"], default="ppo", help="algorithm (default ppo)")
@@ -146,8 +146,8 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--vec-env", choices=["batched", "subproc"], default="batched",
                        help="the native batched VecEnv (default) or a SubprocVecEnv of single environments")
     train.add_argument("--seed", type=int, default=0, help="seed of the algorithm and of the training environments (default 0)")
-    train.add_argument("--eval-every", type=positive_int, default=20_000, help="steps between evaluations (default 20000)")
-    train.add_argument("--checkpoint-every", type=positive_int, default=50_000, help="steps between checkpoints (default 50000)")
+    train.add_argument("--eval-every", type=positive_int, default=20_000,
+                       help="steps between evaluations, each one checkpointed (default 20000)")
     train.add_argument("--eval-episodes", type=positive_int, default=32, help="validation episodes per evaluation (default 32)")
     train.add_argument(
         "--resume", metavar="AGENT", default=None,

@@ -24,11 +24,11 @@ from typing import Any, cast
 import gymnasium as gym
 import numpy as np
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList, EvalCallback
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
-from stable_baselines3.common.policies import BasePolicy
-from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize
+from stable_baselines3.common.policies import ActorCriticPolicy, BasePolicy
+from stable_baselines3.common.vec_env import SubprocVecEnv, VecEnv, VecMonitor, VecNormalize, sync_envs_normalization
 
 import ea_gym  # noqa: F401 - registers the environments
 from agents.agent_files import (
@@ -55,12 +55,18 @@ from agents.conventions import (
     refuse_pickle,
 )
 from agents.imitation import clone
+from agents.initial_policy import initial_probabilities, start_from
 from agents.observations import LearnerView, normalised_keys
 from ea_gym.documents import read_document
 from ea_gym.env import env_id
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_atomic, write_json
 from ea_gym.threads import single_threaded_torch
+
+
+#: an output directory's sub-directories (agent directories): the policy of every evaluation, and the last policy
+CHECKPOINTS_DIRECTORY = "checkpoints"
+LAST_DIRECTORY = "last"
 
 
 @dataclass(frozen=True)
@@ -73,9 +79,8 @@ class TrainingRun:
     n_envs: int = 16
     seed: int = 0
     vec_env: str = "batched"  # or "subproc"
-    eval_every: int = 20_000  # environment steps between evaluations
+    eval_every: int = 20_000  # environment steps between evaluations, each one checkpointed
     eval_episodes: int = 32  # validation episodes per evaluation: 8 gave rewards too noisy to pick a checkpoint by
-    checkpoint_every: int = 50_000
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     hyperparameters: dict[str, Any] = field(default_factory=dict)
     teacher: str | None = None  # a rule of TEACHERS cloned before learning (PPO and A2C only)
@@ -83,6 +88,7 @@ class TrainingRun:
     teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning (and each DAgger round)
     dagger_rounds: int = 0  # DAgger rounds after the cloning: the learner acts, the teacher labels (agents.imitation)
     activity: bool = True  # the learner also sees each element's EA on a log scale (agents.observations); runs saved without the field did not
+    initial_carry_on: float | None = 0.9  # a new PPO or A2C policy's probability of carrying on (agents.initial_policy); None: uniform
 
 
 #: rule policies a learner can start from (``agents.imitation``): class, default parameter, keyword
@@ -167,9 +173,12 @@ def train(
 ) -> dict[str, Any]:
     """Train, evaluate and checkpoint; returns the summary written to ``out/training.json``.
 
-    Writes ``out`` as an agent directory (``agents.agent_files``: the checkpoint with the best validation
-    reward), its checkpoints ``out/checkpoints/<algo>_<steps>_steps`` and the latest best evaluated
-    policy ``out/best`` (agent directories too), the evaluations and the summary.
+    Every ``run.eval_every`` steps the policy is evaluated on ``run.eval_episodes`` validation episodes
+    and checkpointed in ``out/checkpoints/<algo>_<steps>_steps`` (a teacher's clone too, at 0 steps); the
+    last policy lands in ``out/last`` and is evaluated when its step was not. ``out`` itself becomes the
+    evaluated policy with the best mean validation reward (an agent directory of ``agents.agent_files``,
+    as the others: weights, optimizer state and the normalisation statistics it was evaluated with), and
+    ``out/training.json`` the summary: the run, every evaluation's rewards and the one selected.
 
     Args:
         resume: an agent directory to continue from (an earlier ``out`` or one of its checkpoints): the
@@ -208,9 +217,9 @@ def train(
     def store(directory: Path) -> None:
         save_agent(directory, model, env, environment, settings)
 
-    checkpoints = out / "checkpoints"
     started = time.perf_counter()
     cloning = None
+    candidates: list[Evaluation] = []  # every evaluated policy, in the order evaluated
     if run.teacher is not None and resume is None:
         if run.algo == "dqn":
             raise ValueError("a teacher can only be cloned into PPO or A2C (an actor-critic), not DQN")
@@ -220,24 +229,54 @@ def train(
             # the cloned policy is a candidate too: reinforcement learning must beat it to replace it
             rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
         cloning["validation_reward"] = float(np.mean(rewards))
-        store(checkpoints / f"{run.algo}_0_steps")
-    steps_per_call = max(run.n_envs, 1)
-    callbacks = CallbackList([
-        EvalCallback(evaluation_env, n_eval_episodes=run.eval_episodes, eval_freq=max(run.eval_every // steps_per_call, 1),
-                     callback_on_new_best=SaveAgent(lambda steps: store(out / "best")), log_path=str(out / "evaluations"), deterministic=True),
-        SaveAgent(lambda steps: store(checkpoints / f"{run.algo}_{steps}_steps"), every=max(run.checkpoint_every // steps_per_call, 1)),
-    ])
+        store(out / _checkpoint(run, 0))
+        candidates.append(Evaluation(0, cast(list[float], rewards), _checkpoint(run, 0)))
+    # every evaluation checkpoints the policy it evaluated, with the normalisation statistics it saw
+    evaluation = EvalCallback(evaluation_env, n_eval_episodes=run.eval_episodes, eval_freq=max(run.eval_every // run.n_envs, 1),
+                              callback_after_eval=SaveAgent(lambda steps: store(out / _checkpoint(run, steps))), deterministic=True, verbose=0,
+                              log_path=str(out / "evaluations"))  # with a log path it keeps every evaluation's rewards
     # the environments' numpy shares the process: a second torch thread fights its BLAS threads (20x slower here)
     with single_threaded_torch():
-        model.learn(total_timesteps=run.timesteps, callback=callbacks, progress_bar=progress_bar, reset_num_timesteps=resume is None)
-    wall = time.perf_counter() - started
-    store(checkpoints / f"{run.algo}_{model.num_timesteps}_steps")
-    selected = _select(out, run, cloning, model.num_timesteps)
+        model.learn(total_timesteps=run.timesteps, callback=evaluation, progress_bar=progress_bar, reset_num_timesteps=resume is None)
+        wall = time.perf_counter() - started
+        store(out / LAST_DIRECTORY)
+        candidates += [Evaluation(int(steps), [float(r) for r in rewards], _checkpoint(run, int(steps)))
+                       for steps, rewards in zip(evaluation.evaluations_timesteps, evaluation.evaluations_results)]
+        if model.num_timesteps not in evaluation.evaluations_timesteps:  # the last model is a candidate too
+            sync_envs_normalization(env, evaluation_env)
+            rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
+            candidates.append(Evaluation(model.num_timesteps, cast(list[float], rewards), LAST_DIRECTORY))
+    selected = _select(out, run, candidates)
     summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
-               "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected}
+               "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected,
+               "last": {"steps": model.num_timesteps, "directory": LAST_DIRECTORY},
+               "evaluations": [candidate.to_dict() for candidate in candidates]}
     write_json(out / SUMMARY_FILE, summary)
     env.close()
     return summary
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """One evaluated policy: its step count, its validation episodes' rewards and its agent directory
+    (relative to the output directory)."""
+
+    steps: int
+    rewards: list[float]
+    directory: str
+
+    @property
+    def mean_reward(self) -> float:
+        return float(np.mean(self.rewards))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"steps": self.steps, "mean_reward": round(self.mean_reward, 3), "std_reward": round(float(np.std(self.rewards)), 3),
+                "directory": self.directory}
+
+
+def _checkpoint(run: TrainingRun, steps: int) -> str:
+    """The agent directory of the checkpoint after ``steps`` environment steps, relative to the output directory."""
+    return f"{CHECKPOINTS_DIRECTORY}/{run.algo}_{steps}_steps"
 
 
 def _model(
@@ -251,6 +290,9 @@ def _model(
     policy: Any = "MultiInputPolicy" if stored is None else stored.policy_class
     policy_kwargs = None if stored is None else stored.policy_kwargs
     model = ALGORITHMS[run.algo](policy, normalized, seed=run.seed, verbose=0, tensorboard_log=tensorboard, policy_kwargs=policy_kwargs, **settings)
+    if stored is None and run.initial_carry_on is not None and isinstance(model.policy, ActorCriticPolicy):
+        meanings, core = env.get_attr("action_meanings")[0], env.get_attr("core")[0]
+        start_from(model.policy, initial_probabilities(meanings, core.config.costs, run.initial_carry_on))
     if stored is not None and resume is not None:
         stored.normalization.restore(normalized)
         load_weights(model.policy, resume)
@@ -284,32 +326,14 @@ def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:
             raise ValueError(f"resume: the agent was trained with {name} {agent!r}, this run has {here!r}")
 
 
-def _select(out: Path, run: TrainingRun, cloning: dict[str, Any] | None, final_steps: int) -> dict[str, Any]:
-    """Copy the checkpoint with the best validation reward into ``out``; the final one when no checkpoint
-    was evaluated.
-
-    Candidates are the checkpoints taken at an evaluation (``checkpoint_every`` a multiple of
-    ``eval_every``) and the cloned policy before learning.
-    """
-    checkpoints = out / "checkpoints"
-    candidates: list[tuple[float, str]] = []
-    if cloning is not None:
-        candidates.append((cloning["validation_reward"], "0"))
-    log = out / "evaluations" / "evaluations.npz"
-    if log.is_file():
-        with np.load(log) as evaluations:
-            for steps, rewards in zip(evaluations["timesteps"], evaluations["results"]):
-                if (checkpoints / f"{run.algo}_{steps}_steps" / AGENT_FILE).is_file():
-                    candidates.append((float(np.mean(rewards)), str(steps)))
-    if candidates:
-        best_reward, best = max(candidates, key=lambda c: c[0])
-        why = f"best mean validation reward ({best_reward:.1f} over {run.eval_episodes} validation episodes)"
-    else:
-        best, why = str(final_steps), "no evaluated checkpoint: the final model"
-    selected = checkpoints / f"{run.algo}_{best}_steps"
+def _select(out: Path, run: TrainingRun, candidates: list[Evaluation]) -> dict[str, Any]:
+    """Copy the evaluated policy with the best mean validation reward into ``out`` (the earliest of equals)."""
+    best = max(candidates, key=lambda candidate: candidate.mean_reward)
     for name in (POLICY_FILE, OPTIMIZER_FILE, AGENT_FILE):  # agent.json last: it marks a complete agent
-        write_atomic(out / name, partial(shutil.copyfile, selected / name))
-    return {"checkpoint": f"{best} steps", "why": why}
+        write_atomic(out / name, partial(shutil.copyfile, out / best.directory / name))
+    return {"checkpoint": f"{best.steps} steps", "steps": best.steps, "directory": best.directory,
+            "validation_reward": round(best.mean_reward, 3),
+            "why": f"best mean validation reward ({best.mean_reward:.1f} over {run.eval_episodes} validation episodes)"}
 
 
 def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool = False) -> NormalizedPolicy:
@@ -344,10 +368,12 @@ def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool
 
 
 def summary_run(directory: Path) -> TrainingRun:
-    """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it)."""
+    """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it;
+    their ``checkpoint_every``, from before every evaluation was checkpointed, is dropped)."""
     path = Path(directory) / SUMMARY_FILE
     try:
-        return TrainingRun(**{"activity": False, **read_document(path)["run"]})
+        recorded = {key: value for key, value in read_document(path)["run"].items() if key != "checkpoint_every"}
+        return TrainingRun(**{"activity": False, **recorded})
     except (ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path}: cannot read the training run ({error})") from None
 

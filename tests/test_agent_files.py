@@ -246,7 +246,7 @@ def test_trusted_sb3_files_load_convert_and_resume(tmp_path, observations, capsy
     _assert_acts_as(load_policy(tmp_path / "converted"), model, env, observations)
     assert json.loads((tmp_path / "converted" / "training.json").read_text()) == {"run": asdict(run)}
     resume = ["train", "--resume", str(legacy / "model.zip"), "--trust-pickle", "--obs-mode", "oracle", "--n-envs", "2",
-              "--timesteps", "32", "--eval-every", "1000", "--checkpoint-every", "1000", "--eval-episodes", "1", "--no-progress",
+              "--timesteps", "32", "--eval-every", "1000", "--eval-episodes", "1", "--no-progress",
               "--out", str(tmp_path / "resumed")]
     assert main(resume) == 0, capsys.readouterr().err
     assert load_policy(tmp_path / "resumed").num_timesteps == 64 + 32

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from agents.policies import CorrectiveBand, Oracle
+from agents.conventions import VALIDATION_SEED
 from agents.training import TEACHERS, TrainingRun, load_policy, make_teacher, make_vec_env, train
 from ea_gym.cli import main
 
@@ -14,8 +15,8 @@ from ea_gym.cli import main
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
     out = tmp_path_factory.mktemp("ppo")
-    run = TrainingRun(algo="ppo", timesteps=256, obs_mode="oracle", n_envs=4, eval_every=256, eval_episodes=1,
-                      checkpoint_every=128, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
+    run = TrainingRun(algo="ppo", timesteps=448, obs_mode="oracle", n_envs=4, eval_every=192, eval_episodes=2,
+                      env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
     summary = train(run, out, progress_bar=False)
     return out, summary
 
@@ -23,13 +24,14 @@ def trained(tmp_path_factory):
 def test_training_writes_agent_checkpoints_and_summary_without_pickle(trained):
     out, summary = trained
     agent = ("agent.json", "policy.safetensors", "optimizer.safetensors")
-    for name in (*agent, "training.json", *(f"best/{n}" for n in agent), "evaluations/evaluations.npz"):
+    for name in (*agent, "training.json", *(f"last/{n}" for n in agent)):
         assert (out / name).is_file(), name
-    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["ppo_128_steps", "ppo_256_steps"]
+    # a checkpoint at every evaluation, at the same steps
+    assert sorted(p.name for p in (out / "checkpoints").iterdir()) == ["ppo_192_steps", "ppo_384_steps"]
     for checkpoint in (out / "checkpoints").iterdir():
         assert sorted(p.name for p in checkpoint.iterdir()) == sorted(agent)
     assert not [p for p in out.rglob("*") if p.suffix in (".zip", ".pkl")]
-    assert json.loads((out / "training.json").read_text())["run"]["timesteps"] == summary["run"]["timesteps"] == 256
+    assert json.loads((out / "training.json").read_text())["run"]["timesteps"] == summary["run"]["timesteps"] == 448
 
 
 def test_reloaded_policy_predicts_valid_actions_for_single_and_batched_observations(trained):
@@ -47,10 +49,10 @@ def test_reloaded_policy_predicts_valid_actions_for_single_and_batched_observati
 def test_training_resumes_from_a_checkpoint(trained, tmp_path):
     out, _ = trained
     run = TrainingRun(algo="ppo", timesteps=128, obs_mode="oracle", n_envs=4, eval_every=10_000, eval_episodes=1,
-                      checkpoint_every=10_000, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
-    summary = train(run, tmp_path, resume=out / "checkpoints" / "ppo_128_steps", progress_bar=False)
-    assert summary["resumed_from"].endswith("ppo_128_steps")
-    assert load_policy(tmp_path).num_timesteps == 128 + 128
+                      env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64})
+    summary = train(run, tmp_path, resume=out / "checkpoints" / "ppo_192_steps", progress_bar=False)
+    assert summary["resumed_from"].endswith("ppo_192_steps")
+    assert load_policy(tmp_path).num_timesteps == 192 + 128
     with pytest.raises(ValueError, match="trained with obs_mode 'oracle', this run has 'phm'"):
         train(TrainingRun(timesteps=64, obs_mode="phm", env_kwargs={"horizon": 50}), tmp_path / "x", resume=out, progress_bar=False)
 
@@ -64,19 +66,34 @@ def test_train_command_rejects_bad_arguments(capsys):
     assert "expected a positive integer" in capsys.readouterr().err
 
 
-def test_the_selected_model_is_the_best_validated_checkpoint(trained):
+def test_the_selected_model_is_the_best_evaluation_and_the_last_model_is_kept(trained):
     out, summary = trained
-    with np.load(out / "evaluations" / "evaluations.npz") as log:
-        rewards = dict(zip(log["timesteps"].tolist(), log["results"].mean(axis=1)))
-    best = max((steps for steps in rewards if (out / "checkpoints" / f"ppo_{steps}_steps").is_dir()), key=rewards.get)
-    assert summary["selected"]["checkpoint"] == f"{best} steps"
+    evaluations = summary["evaluations"]
+    # the evaluations at 192 and 384 steps, then the last model (PPO's 4 rollouts of 128 steps), not evaluated on the way
+    assert [(e["steps"], e["directory"]) for e in evaluations] == [
+        (192, "checkpoints/ppo_192_steps"), (384, "checkpoints/ppo_384_steps"), (512, "last")]
+    best = max(evaluations, key=lambda e: e["mean_reward"])
+    assert summary["selected"]["steps"] == best["steps"] and summary["selected"]["validation_reward"] == best["mean_reward"]
+    assert summary["last"] == {"steps": 512, "directory": "last"}
     for name in ("agent.json", "policy.safetensors", "optimizer.safetensors"):
-        assert (out / name).read_bytes() == (out / "checkpoints" / f"ppo_{best}_steps" / name).read_bytes()
+        assert (out / name).read_bytes() == (out / best["directory"] / name).read_bytes()
+    assert load_policy(out).num_timesteps == best["steps"] and load_policy(out / "last").num_timesteps == 512
+    # each evaluation's score is the evaluated checkpoint's: re-evaluated, its validation episodes give the same rewards
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    from agents.training import normalize
+
+    policy = load_policy(out / "checkpoints" / "ppo_192_steps")
+    env = normalize(make_vec_env(TrainingRun(obs_mode="oracle", env_kwargs={"horizon": 50}), 2, VALIDATION_SEED, kind="batched"),
+                    training=False)
+    policy.normalization.restore(env)
+    rewards, _ = evaluate_policy(policy.policy, env, n_eval_episodes=2, deterministic=True, return_episode_rewards=True)
+    assert np.mean(rewards) == pytest.approx(evaluations[0]["mean_reward"], abs=1e-3)
 
 
 def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
     run = TrainingRun(algo="ppo", timesteps=128, obs_mode="oracle", n_envs=4, eval_every=128, eval_episodes=1,
-                      checkpoint_every=128, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64},
+                      env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 32, "batch_size": 64},
                       teacher="oracle", teacher_steps=2048)
     summary = train(run, tmp_path, progress_bar=False)
     cloning = summary["cloning"]
@@ -84,6 +101,7 @@ def test_a_cloned_teacher_is_imitated_and_competes_for_selection(tmp_path):
     # an untrained policy agrees with the teacher about 1 step in 7; the clone nearly always
     assert cloning["accuracy"] >= 0.9
     assert (tmp_path / "checkpoints" / "ppo_0_steps" / "agent.json").is_file()  # the clone, before learning
+    assert [e["steps"] for e in summary["evaluations"]] == [0, 128]  # the clone competes with the learner
     assert summary["selected"]["checkpoint"] in ("0 steps", "128 steps")
     with pytest.raises(ValueError, match="teacher must be one of"):
         run = TrainingRun(timesteps=64, teacher="guess", n_envs=2, hyperparameters={"n_steps": 32, "batch_size": 64})
@@ -127,7 +145,7 @@ def test_a_dagger_collection_steps_the_learner_and_records_the_teachers_labels()
 
 def test_dagger_rounds_label_the_learners_states_and_aggregate_them(tmp_path):
     run = TrainingRun(algo="ppo", timesteps=64, obs_mode="oracle", n_envs=4, eval_every=64, eval_episodes=1,
-                      checkpoint_every=64, env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 16, "batch_size": 64},
+                      env_kwargs={"horizon": 50}, hyperparameters={"n_steps": 16, "batch_size": 64},
                       teacher="oracle", teacher_steps=1024, dagger_rounds=2)
     cloning = train(run, tmp_path, progress_bar=False)["cloning"]
     assert cloning["steps"] == sum(cloning["action_counts"]) == 3 * 1024  # the teacher's steps, then two rounds'
