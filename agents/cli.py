@@ -51,7 +51,7 @@ def _train(args: argparse.Namespace) -> int:
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
         vec_env=args.vec_env, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
-        dagger_rounds=args.dagger_rounds,
+        dagger_rounds=args.dagger_rounds, initial_carry_on=None if args.initial_carry_on == 0 else args.initial_carry_on,
     )
     resume = None if args.resume is None else Path(args.resume)
     summary = train(run, Path(args.out), resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
@@ -116,6 +116,17 @@ def _add_environment(parser: argparse.ArgumentParser) -> None:
     )
 
 
+def _carry_on(text: str) -> float:
+    """``--initial-carry-on``: a probability in (0, 1), or 0 for the uniform start."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not (value == 0 or 0 < value < 1):
+        raise argparse.ArgumentTypeError(f"expected a probability in (0, 1), or 0 for a uniform start, got {text!r}")
+    return value
+
+
 def default_agent() -> Path | None:
     """``agents/data/ppo_phm`` beside the installed package, if a policy was trained there."""
     directory = Path(__file__).parent / "data" / "ppo_phm"
@@ -167,6 +178,10 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--dagger-rounds", type=non_negative_int, default=0,
                        help="DAgger rounds after the cloning: the learner acts, the teacher labels, the policy is refitted "
                             "on all labelled steps (default 0; needs --teacher)")
+    train.add_argument("--initial-carry-on", type=_carry_on, default=0.9, metavar="P",
+                       help="a new PPO or A2C policy carries on with probability P, the maintenance actions sharing the rest in "
+                            "inverse proportion to their immediate cost (agents.initial_policy); 0: stable-baselines3's uniform "
+                            "start (default 0.9)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_environment(train)
     rllib = train.add_argument_group("RLlib", "--backend rllib: PPO with Ray RLlib (the optional extra ea-gym[rllib]); --n-envs is per env runner")

@@ -63,7 +63,6 @@ from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.files import write_atomic, write_json
 from ea_gym.threads import single_threaded_torch
 
-
 #: an output directory's sub-directories (agent directories): the policy of every evaluation, and the last policy
 CHECKPOINTS_DIRECTORY = "checkpoints"
 LAST_DIRECTORY = "last"
@@ -209,7 +208,7 @@ def train(
     env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs)
     # validation episodes run 8 at a time on the batched env
     evaluation_env = make_vec_env(run, min(run.eval_episodes, 8), VALIDATION_SEED, kind="batched")
-    model, env = _model(run, env, settings, tensorboard, resume, stored)
+    model, env = make_model(run, env, settings, tensorboard, resume, stored)
     evaluation_env = normalize(evaluation_env, training=False)
     evaluation_env.obs_rms = env.obs_rms
     environment = trained_environment(run)
@@ -279,7 +278,7 @@ def _checkpoint(run: TrainingRun, steps: int) -> str:
     return f"{CHECKPOINTS_DIRECTORY}/{run.algo}_{steps}_steps"
 
 
-def _model(
+def make_model(
     run: TrainingRun, env: VecEnv, settings: dict[str, Any], tensorboard: str | None, resume: Path | None, stored: AgentDescription | None,
 ) -> tuple[BaseAlgorithm, VecNormalize]:
     """The model to train and its normalised environment: new, resumed from an agent directory (``stored``

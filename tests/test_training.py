@@ -6,8 +6,8 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.policies import CorrectiveBand, Oracle
 from agents.conventions import VALIDATION_SEED
+from agents.policies import CorrectiveBand, Oracle
 from agents.training import TEACHERS, TrainingRun, load_policy, make_teacher, make_vec_env, train
 from ea_gym.cli import main
 
