@@ -51,7 +51,8 @@ def _train(args: argparse.Namespace) -> int:
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
         vec_env=args.vec_env, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
-        dagger_rounds=args.dagger_rounds, initial_carry_on=None if args.initial_carry_on == 0 else args.initial_carry_on,
+        dagger_rounds=args.dagger_rounds, wear_shaping=not args.no_wear_shaping,
+        initial_carry_on=None if args.initial_carry_on == 0 else args.initial_carry_on,
     )
     resume = None if args.resume is None else Path(args.resume)
     summary = train(run, Path(args.out), resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
@@ -182,6 +183,9 @@ def add_train(commands: Subcommands) -> None:
                        help="a new PPO or A2C policy carries on with probability P, the maintenance actions sharing the rest in "
                             "inverse proportion to their immediate cost (agents.initial_policy); 0: stable-baselines3's uniform "
                             "start (default 0.9)")
+    train.add_argument("--no-wear-shaping", action="store_true",
+                       help="train on the environment's own rewards, without the potential-based shaping by the parts' true "
+                            "wear (agents.shaping; validation always uses the environment's rewards)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_environment(train)
     rllib = train.add_argument_group("RLlib", "--backend rllib: PPO with Ray RLlib (the optional extra ea-gym[rllib]); --n-envs is per env runner")

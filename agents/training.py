@@ -57,6 +57,7 @@ from agents.conventions import (
 from agents.imitation import clone
 from agents.initial_policy import initial_probabilities, start_from
 from agents.observations import LearnerView, normalised_keys
+from agents.shaping import WearShaping
 from ea_gym.documents import read_document
 from ea_gym.env import env_id
 from ea_gym.env.sb3 import MaintenanceVecEnv
@@ -87,6 +88,7 @@ class TrainingRun:
     teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning (and each DAgger round)
     dagger_rounds: int = 0  # DAgger rounds after the cloning: the learner acts, the teacher labels (agents.imitation)
     activity: bool = True  # the learner also sees each element's EA on a log scale (agents.observations); runs saved without the field did not
+    wear_shaping: bool = True  # training rewards shaped with the true wear (agents.shaping); validation uses the environment's
     initial_carry_on: float | None = 0.9  # a new PPO or A2C policy's probability of carrying on (agents.initial_policy); None: uniform
 
 
@@ -118,8 +120,9 @@ def make_teacher(run: TrainingRun, env: VecEnv) -> Any:
     return getattr(policies, name)(env, default if run.teacher_parameter is None else run.teacher_parameter, **kwargs)
 
 
-def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = None) -> VecEnv:
-    """The training (or validation) environments, seeded seed, seed + 1, ..."""
+def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = None, shaped: bool = False) -> VecEnv:
+    """The training (or validation) environments, seeded seed, seed + 1, ...; ``shaped``: with the run's
+    reward shaping (``agents.shaping``, training only)."""
     kind = kind or run.vec_env
     kwargs = {"obs_mode": run.obs_mode, "continue_after_failure": True, **run.env_kwargs}
     if kind == "batched":
@@ -129,8 +132,12 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
     else:
         raise ValueError(f"vec_env must be 'batched' or 'subproc', got {kind!r}")
     env.seed(seed)
-    # VecMonitor: episode returns and lengths for the logs and the evaluation callback
-    return LearnerView(VecMonitor(env), activity=run.activity)
+    # VecMonitor: the environment's own episode returns and lengths, for the logs and the evaluation callback
+    monitored: VecEnv = VecMonitor(env)
+    if run.wear_shaping:  # unshaped (scale 0) on validation: the same wrappers, for SB3's synchronised normalisation
+        scale = monitored.get_attr("core")[0].config.costs.failure if shaped else 0.0
+        monitored = WearShaping(monitored, gamma=hyperparameters(run).get("gamma", 0.99), scale=scale)
+    return LearnerView(monitored, activity=run.activity)
 
 
 def normalize(env: VecEnv, training: bool = True) -> VecNormalize:
@@ -205,7 +212,7 @@ def train(
     out.mkdir(parents=True, exist_ok=True)
     settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
     tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
-    env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs)
+    env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs, shaped=True)
     # validation episodes run 8 at a time on the batched env
     evaluation_env = make_vec_env(run, min(run.eval_episodes, 8), VALIDATION_SEED, kind="batched")
     model, env = make_model(run, env, settings, tensorboard, resume, stored)

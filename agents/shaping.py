@@ -1,0 +1,65 @@
+"""Potential-based reward shaping with the components' true wear, for training only.
+
+The environment charges a failure at once, 400 on one step, while what causes it, a part wearing
+toward its limit, and what prevents it, a corrective step or a replacement, come tens of steps earlier.
+A learner then sees a maintenance step cost 1 or 52 now and its benefit as a small shift of a rare
+-400 somewhere ahead, buried in the noise of every other episode's failures.
+
+``WearShaping`` adds F = gamma * Phi(s') - Phi(s) to every training reward, with the potential
+Phi(s) = -failure_cost * sum over components of their true wear (0 at nominal, 1 at the safe limit,
+clipped to [0, 1]). A part wearing toward its limit is charged the failure's cost as it wears, a step
+that brings it back is credited at once, and a failure's -400 is offset by the wear it ends. Shaping of
+this form changes no policy's ranking (Ng, Harada and Russell, 1999: the shaped discounted return is
+the original one minus Phi of the first state), so the best policy stays the best for the
+environment's own cost. The potential reads the true parameters from the step's info (the simulator's
+state, which the policy never sees); validation and evaluation use the environment's own rewards.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
+
+__all__ = ["WearShaping", "true_wear"]
+
+
+def true_wear(parameters: dict[str, float], nominal: dict[str, float], limits: dict[str, tuple[float, float]]) -> np.ndarray:
+    """Each component's way from its nominal value to the safe limit on its side, clipped to [0, 1]."""
+    wear = []
+    for name, (low, high) in limits.items():
+        value, centre = parameters[name], nominal[name]
+        wear.append((centre - value) / (centre - low) if value < centre else (value - centre) / (high - centre))
+    return np.clip(np.array(wear), 0.0, 1.0)
+
+
+class WearShaping(VecEnvWrapper):
+    """Adds gamma * Phi(s') - Phi(s) to the rewards, Phi = -scale * sum of the true wear (see the module).
+
+    Args:
+        venv: the maintenance VecEnv (infos with ``true_parameters``; ``nominal_parameters`` and ``safe_limits``).
+        gamma: the learner's discount (the shaping keeps the best policy only with the same one).
+        scale: the potential at one component's limit, in the cost model's unit (the failure cost).
+    """
+
+    def __init__(self, venv: VecEnv, gamma: float, scale: float):
+        super().__init__(venv)
+        self.gamma, self.scale = float(gamma), float(scale)
+        self.nominal = venv.get_attr("nominal_parameters")[0]
+        self.limits = venv.get_attr("safe_limits")[0]
+        self.potential = np.zeros(venv.num_envs)
+
+    def _potential(self, info: dict[str, Any]) -> float:
+        return -self.scale * float(true_wear(info["true_parameters"], self.nominal, self.limits).sum())
+
+    def reset(self) -> Any:
+        self.potential = np.zeros(self.num_envs)  # every episode starts with its components at nominal
+        return self.venv.reset()
+
+    def step_wait(self) -> Any:
+        observation, rewards, dones, infos = self.venv.step_wait()
+        after = np.array([self._potential(info) for info in infos])  # an ended episode's last state
+        shaped = rewards + self.gamma * after - self.potential
+        self.potential = np.where(dones, 0.0, after)
+        return observation, shaped.astype(np.float32), dones, infos
