@@ -63,7 +63,8 @@ def _train(args: argparse.Namespace) -> int:
 def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
     sb3_only = [flag for flag, used in (("--algo", args.algo != "ppo"), ("--teacher", args.teacher is not None),
                                         ("--resume", args.resume is not None), ("--vec-env", args.vec_env != "batched"),
-                                        ("--dagger-rounds", args.dagger_rounds > 0), ("--system", args.system is not None)) if used]
+                                        ("--dagger-rounds", args.dagger_rounds > 0), ("--system", args.system is not None),
+                                        ("--no-wear-shaping", args.no_wear_shaping), ("--initial-carry-on", args.initial_carry_on != 0.9)) if used]
     if sb3_only:
         raise ValueError(f"--backend rllib trains PPO from scratch on the spring-mass-damper's native vector env: drop {', '.join(sb3_only)}")
     from agents.ray_cluster import require_ray
