@@ -246,12 +246,7 @@ def train(
         model.learn(total_timesteps=run.timesteps, callback=evaluation, progress_bar=progress_bar, reset_num_timesteps=resume is None)
         wall = time.perf_counter() - started
         store(out / LAST_DIRECTORY)
-        candidates += [Evaluation(int(steps), [float(r) for r in rewards], _checkpoint(run, int(steps)))
-                       for steps, rewards in zip(evaluation.evaluations_timesteps, evaluation.evaluations_results)]
-        if model.num_timesteps not in evaluation.evaluations_timesteps:  # the last model is a candidate too
-            sync_envs_normalization(env, evaluation_env)
-            rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
-            candidates.append(Evaluation(model.num_timesteps, cast(list[float], rewards), LAST_DIRECTORY))
+        candidates += _learned(run, model, env, evaluation)
     selected = _select(out, run, candidates)
     summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
                "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected,
@@ -278,6 +273,17 @@ class Evaluation:
     def to_dict(self) -> dict[str, Any]:
         return {"steps": self.steps, "mean_reward": round(self.mean_reward, 3), "std_reward": round(float(np.std(self.rewards)), 3),
                 "directory": self.directory}
+
+
+def _learned(run: TrainingRun, model: BaseAlgorithm, env: VecNormalize, evaluation: EvalCallback) -> list[Evaluation]:
+    """The evaluations made while learning and, when its step was not among them, the last model's (in ``last``)."""
+    candidates = [Evaluation(int(steps), [float(r) for r in rewards], _checkpoint(run, int(steps)))
+                  for steps, rewards in zip(evaluation.evaluations_timesteps, evaluation.evaluations_results)]
+    if model.num_timesteps not in evaluation.evaluations_timesteps:  # the last model is a candidate too
+        sync_envs_normalization(env, evaluation.eval_env)
+        rewards, _ = evaluate_policy(model, evaluation.eval_env, n_eval_episodes=run.eval_episodes, deterministic=True)
+        candidates.append(Evaluation(model.num_timesteps, cast(list[float], rewards), LAST_DIRECTORY))
+    return candidates
 
 
 def _checkpoint(run: TrainingRun, steps: int) -> str:
