@@ -250,8 +250,7 @@ def train(
     selected = _select(out, run, candidates)
     summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
                "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected,
-               "last": {"steps": model.num_timesteps, "directory": LAST_DIRECTORY},
-               "evaluations": [candidate.to_dict() for candidate in candidates]}
+               "last": {"steps": model.num_timesteps, "directory": LAST_DIRECTORY}, "evaluations": [c.to_dict() for c in candidates]}
     write_json(out / SUMMARY_FILE, summary)
     env.close()
     return summary
