@@ -17,7 +17,10 @@ from typing import Any
 
 import yaml
 
-__all__ = ["MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "DocumentError", "is_yaml", "read_document"]
+__all__ = [
+    "MAX_BYTES", "MAX_DEPTH", "MAX_VALUES", "DocumentError", "FileTooLargeError", "NotRegularFileError", "is_yaml", "read_document",
+    "read_regular_file",
+]
 
 MAX_BYTES = 1 << 20
 MAX_DEPTH = 32
@@ -26,6 +29,37 @@ MAX_VALUES = 100_000
 
 class DocumentError(ValueError):
     """A file that cannot be read as a JSON or YAML document within the limits; the message says why."""
+
+
+class NotRegularFileError(ValueError):
+    """A path that is not a regular file (a FIFO or a device, whose reading would block or never end)."""
+
+
+class FileTooLargeError(ValueError):
+    """A file of more bytes than its reader takes; ``size``: its size as stat saw it, None when it grew while read."""
+
+    def __init__(self, size: int | None) -> None:
+        super().__init__(f"{size} bytes" if size is not None else "it grew while read")
+        self.size = size
+
+
+def read_regular_file(path: Path, max_bytes: int) -> bytes:
+    """The bytes of ``path``, a regular file of at most ``max_bytes``: its size checked before reading and the
+    read itself bounded (the file may grow in between). The callers word the errors for their files.
+
+    Raises:
+        OSError: the file cannot be read. NotRegularFileError, FileTooLargeError.
+    """
+    info = path.stat()
+    if not stat.S_ISREG(info.st_mode):
+        raise NotRegularFileError(str(path))
+    if info.st_size > max_bytes:
+        raise FileTooLargeError(info.st_size)
+    with path.open("rb") as stream:
+        raw = stream.read(max_bytes + 1)
+    if len(raw) > max_bytes:
+        raise FileTooLargeError(None)
+    return raw
 
 
 def is_yaml(path: str | os.PathLike[str]) -> bool:
@@ -86,20 +120,14 @@ def read_document(path: str | os.PathLike[str]) -> Any:
     """
     path = Path(path)
     try:
-        info = path.stat()
+        raw = read_regular_file(path, MAX_BYTES)
     except OSError as exc:
         raise DocumentError(f"cannot read the file: {exc.strerror or exc}") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise DocumentError("not a regular file")
-    if info.st_size > MAX_BYTES:
-        raise DocumentError(f"the file has {info.st_size} bytes; at most {MAX_BYTES} are read")
-    try:
-        with path.open("rb") as stream:
-            raw = stream.read(MAX_BYTES + 1)
-    except OSError as exc:
-        raise DocumentError(f"cannot read the file: {exc.strerror or exc}") from None
-    if len(raw) > MAX_BYTES:
-        raise DocumentError(f"the file has more than {MAX_BYTES} bytes")
+    except NotRegularFileError:
+        raise DocumentError("not a regular file") from None
+    except FileTooLargeError as exc:
+        read = f"more than {MAX_BYTES} bytes" if exc.size is None else f"{exc.size} bytes; at most {MAX_BYTES} are read"
+        raise DocumentError(f"the file has {read}") from None
     syntax = "YAML" if is_yaml(path) else "JSON"
     try:
         text = raw.decode("utf-8")

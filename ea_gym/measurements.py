@@ -18,13 +18,13 @@ import csv
 import io
 import os
 import re
-import stat
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from ea_gym.documents import FileTooLargeError, NotRegularFileError, read_regular_file
 from ea_gym.files import write_atomic
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
@@ -91,17 +91,14 @@ def read_measurements(
     """
     path = Path(path)
     try:
-        info = path.stat()
+        raw = read_regular_file(path, max_bytes)
     except OSError as error:
         raise MeasurementError(f"{path}: cannot read the measurements ({error.strerror})") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise MeasurementError(f"{path}: measurements must be a regular file")
-    if info.st_size > max_bytes:
-        raise MeasurementError(f"{path}: {info.st_size} bytes, more than the {max_bytes} read; split the record")
-    with path.open("rb") as file:
-        raw = file.read(max_bytes + 1)  # the file may have grown since
-    if len(raw) > max_bytes:
-        raise MeasurementError(f"{path}: more than the {max_bytes} bytes read; split the record")
+    except NotRegularFileError:
+        raise MeasurementError(f"{path}: measurements must be a regular file") from None
+    except FileTooLargeError as error:
+        read = f"more than the {max_bytes} bytes" if error.size is None else f"{error.size} bytes, more than the {max_bytes}"
+        raise MeasurementError(f"{path}: {read} read; split the record") from None
     lines = raw.count(b"\n") + (not raw.endswith(b"\n"))  # at least the header and the samples
     if lines - 1 > max_rows:
         raise MeasurementError(f"{path}: {lines - 1} lines after the header, more than the {max_rows} samples read; split the record")
