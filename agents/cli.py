@@ -13,9 +13,9 @@ import dataclasses
 from pathlib import Path
 from typing import Any
 
-from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, TRUST_PICKLE, refuse_pickle
+from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, SUMMARY_FILE, TRUST_PICKLE, refuse_pickle
 from ea_gym.cli_args import Subcommands, env_option, non_negative_int, positive_int, system_option
-from ea_gym.files import check_output_directory
+from ea_gym.files import check_output_directory, staged_output
 
 __all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent", "BENCHMARK_POLICIES"]
 
@@ -38,8 +38,22 @@ def _env_kwargs(args: argparse.Namespace) -> dict[str, Any]:
     return kwargs
 
 
+def _continues_out(args: argparse.Namespace) -> bool:
+    """Whether ``train`` continues its ``--out`` (``--resume`` is that directory or one of its checkpoints); another
+    existing, non-empty ``--out`` is refused: a new run's files would mix with the old ones."""
+    out = Path(args.out)
+    if not out.is_dir() or not any(out.iterdir()):
+        return False
+    resume = None if args.resume is None else Path(args.resume).resolve()
+    if resume is not None and (resume == out.resolve() or out.resolve() in resume.parents):
+        return True
+    raise ValueError(f"--out: {out} exists and is not empty; expected a new or empty directory, or the --resume agent's own "
+                     "directory to continue it")
+
+
 def _train(args: argparse.Namespace) -> int:
     check_output_directory(args.out)
+    continues = _continues_out(args)
     env_kwargs = _env_kwargs(args)
     if args.backend == "rllib":
         return _train_rllib(args, env_kwargs)
@@ -55,7 +69,9 @@ def _train(args: argparse.Namespace) -> int:
         initial_carry_on=None if args.initial_carry_on == 0 else args.initial_carry_on,
     )
     resume = None if args.resume is None else Path(args.resume)
-    summary = train(run, Path(args.out), resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
+    # checkpoints land in the staging directory as the run goes; --out appears (or is replaced) only when it completes
+    with staged_output(args.out, last=SUMMARY_FILE, carry_existing=continues) as staging:
+        summary = train(run, staging, resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
     print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
     return 0
 
@@ -74,7 +90,8 @@ def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
 
     run = RLlibRun(timesteps=args.timesteps, obs_mode=args.obs_mode, num_env_runners=args.num_env_runners, envs_per_env_runner=args.n_envs,
                    seed=args.seed, env_kwargs=env_kwargs)
-    summary = train_rllib(run, Path(args.out), address=args.ray, say=(lambda line: None) if args.no_progress else print)
+    with staged_output(args.out, last=SUMMARY_FILE) as staging:
+        summary = train_rllib(run, staging, address=args.ray, say=(lambda line: None) if args.no_progress else print)
     print(f"trained ppo with RLlib for {summary['env_steps_sampled']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s, "
           f"episodes {summary['episodes']}); wrote {args.out}")
     return 0
@@ -154,7 +171,10 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--algo", choices=["ppo", "dqn", "a2c"], default="ppo", help="algorithm (default ppo)")
     train.add_argument("--timesteps", type=positive_int, default=200_000, help="environment steps (default 200000)")
     train.add_argument("--obs-mode", choices=["phm", "sensors", "oracle"], default="phm", help="information regime (default phm)")
-    train.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    train.add_argument("--out", required=True, metavar="DIR",
+                       help="output directory, new or empty, or the --resume agent's own directory (or the one holding its "
+                            "checkpoint) to continue it, earlier checkpoints kept; the run writes beside it and DIR appears, "
+                            "or is replaced, only when the run completes")
     train.add_argument("--n-envs", type=positive_int, default=16, help="parallel environments (default 16)")
     train.add_argument("--vec-env", choices=["batched", "subproc"], default="batched",
                        help="the native batched VecEnv (default) or a SubprocVecEnv of single environments")
@@ -230,7 +250,8 @@ def add_benchmark(commands: Subcommands) -> None:
                            help="evaluation episodes per policy, for each of oracle, ppo, rul_threshold, corrective_band, periodic "
                                 "and run_to_failure (default 100)")
     benchmark.add_argument("--seed", type=int, default=0, help="benchmark seed S: evaluation seeds 100000 + S * 10000 + i (default 0)")
-    benchmark.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    benchmark.add_argument("--out", required=True, metavar="DIR",
+                           help="output directory (created); its files are written beside it and moved in together when the run completes")
     ppo_choice = benchmark.add_mutually_exclusive_group()
     ppo_choice.add_argument(
         "--ppo", metavar="DIR", default=None,
@@ -245,7 +266,8 @@ def add_benchmark(commands: Subcommands) -> None:
     benchmark.add_argument("--tune-episodes", type=positive_int, default=None, metavar="K",
                            help="with --tune: tuning episodes per grid value, seeds 0..K-1 (default 300)")
     benchmark.add_argument("--write-tuned", metavar="PATH", default=None,
-                           help="with --tune: write the tuned settings to PATH (e.g. agents/data/benchmark/tuned_rules.json)")
+                           help="with --tune: write the tuned settings to PATH (e.g. agents/data/benchmark/tuned_rules.json), with the "
+                                "outputs when the run completes")
     benchmark.add_argument("--allow-stale", action="store_true",
                            help="use tuned settings made on another environment instead of refusing them (the report says so)")
     benchmark.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",

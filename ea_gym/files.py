@@ -44,7 +44,8 @@ def check_output_directory(out: str | os.PathLike[str]) -> None:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise OutputError(f"{out} is an existing file; expected a directory (existing or to create)")
-    existing = next(path for path in out.parents if path.exists() or path == Path(path.anchor))
+    # "." and "/" have no parents (and exist)
+    existing = next((path for path in out.parents if path.exists() or path == Path(path.anchor)), out)
     if not existing.is_dir():
         raise OutputError(f"cannot write {out}: {existing} is a file, not a directory")
     for directory in (existing, out) if out.exists() else (existing,):  # the staging directory goes beside out
@@ -63,13 +64,17 @@ def _missing_parents(directory: Path) -> list[Path]:
 
 
 @contextlib.contextmanager
-def staged_output(out: str | os.PathLike[str], last: str | None = None) -> Iterator[Path]:
+def staged_output(out: str | os.PathLike[str], last: str | None = None, carry_existing: bool = False) -> Iterator[Path]:
     """A temporary directory beside ``out`` for a command to write its outputs in; when the block succeeds they move
     into ``out`` together (a rename of the whole directory when ``out`` does not exist yet), when it fails nothing
     is left: neither the staging directory nor the parent directories it created.
 
     ``last``: a file (e.g. ``results.json``) removed from an existing ``out`` first and moved in last, so that
     its presence means the directory is complete.
+
+    ``carry_existing``: the staging directory starts as a copy of an existing ``out``, for a run that adds to it
+    (a resumed training's new checkpoints beside the earlier ones); on success the result replaces ``out``, on
+    failure ``out`` is left as it was.
 
     Raises:
         OutputError: ``out`` is an existing file, lies under a file, or its parent cannot be written.
@@ -84,6 +89,8 @@ def staged_output(out: str | os.PathLike[str], last: str | None = None) -> Itera
         _remove_created(created)
         raise OutputError(f"cannot write {out}: {error.strerror or error}") from None
     try:
+        if carry_existing and out.is_dir():
+            shutil.copytree(out, staging, symlinks=True, dirs_exist_ok=True)
         yield staging
         _move_in(staging, out, last)
     except BaseException:

@@ -85,6 +85,11 @@ def _under_a_file(tmp: Path) -> Path:
     return _write(tmp / "taken", "a file") / "out"
 
 
+def _made(directory: Path) -> Path:
+    directory.mkdir()
+    return directory
+
+
 def _classifier(make: Callable[[Path], Path]) -> Setup:
     def setup(tmp: Path) -> list[str]:
         return ["phm", str(_write(tmp / "ok.json", GOOD)), "--out", str(tmp / "out"), "--classifier", str(make(tmp))]
@@ -140,6 +145,10 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
     ("phm on a model without limits", _no_limits("phm"), "has no degradable parameter"),
     ("train --out at an existing file", lambda tmp: ["train", "--out", str(_existing_file(tmp))], "is an existing file; expected a directory"),
     ("benchmark --out under a file", lambda tmp: ["benchmark", "--out", str(_under_a_file(tmp))], "is a file, not a directory"),
+    ("train --out at a non-empty directory", lambda tmp: ["train", "--out", str(_write(_made(tmp / "out") / "notes.txt", "kept").parent)],
+     "exists and is not empty; expected a new or empty directory, or the --resume agent's own directory"),
+    ("benchmark --write-tuned at a directory", lambda tmp: ["benchmark", "--out", str(tmp / "out"), "--tune", "--write-tuned", str(tmp)],
+     "is a directory; expected a file to write"),
     ("train --env horizon=true", lambda tmp: ["train", "--out", str(tmp / "out"), "--env", "horizon=true"], "horizon must be an int in"),
     ("--window abc", lambda tmp: ["simulate", "x.json", "--window", "abc"], "argument --window: invalid positive_float value: 'abc'"),
 ]
@@ -175,12 +184,50 @@ def test_debug_shows_the_traceback(tmp_path: Path) -> None:
         main(["--debug", "simulate", str(bad), "--out", str(tmp_path / "out")])
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes anywhere")
-def test_an_unwritable_out_directory_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def _refuse_writes_in(directory: Path, monkeypatch: pytest.MonkeyPatch, access_says_writable: bool) -> None:
+    """What the kernel does in a directory of mode 0o555 to a user other than root (who may write anywhere): creating a
+    file or directory in it fails with EACCES, and access() reports it unwritable, or, ``access_says_writable``, does
+    not (access() can be wrong: ACLs, network file systems, a mode changed after the check)."""
+    real_access, real_mkdir, real_open = os.access, os.mkdir, os.open
+
+    def denied(path: Any) -> PermissionError:
+        return PermissionError(errno.EACCES, os.strerror(errno.EACCES), os.fsdecode(path))
+
+    def access(path: Any, mode: int, **kwargs: Any) -> bool:
+        if Path(os.fsdecode(path)) == directory and mode & os.W_OK:
+            return access_says_writable
+        return real_access(path, mode, **kwargs)
+
+    def mkdir(path: Any, mode: int = 0o777, **kwargs: Any) -> None:
+        if Path(os.fsdecode(path)).parent == directory:
+            raise denied(path)
+        real_mkdir(path, mode, **kwargs)
+
+    def open_(path: Any, flags: int, mode: int = 0o777, **kwargs: Any) -> int:
+        if Path(os.fsdecode(path)).parent == directory and flags & os.O_CREAT:
+            raise denied(path)
+        return real_open(path, flags, mode, **kwargs)
+
+    monkeypatch.setattr(os, "access", access)
+    monkeypatch.setattr(os, "mkdir", mkdir)
+    monkeypatch.setattr(os, "open", open_)
+
+
+@pytest.mark.parametrize("access_says_writable, fragment", [(False, "locked is not writable"), (True, "out: Permission denied")],
+                         ids=["refused before any work", "refused when the staging directory cannot be made"])
+def test_an_unwritable_out_directory_is_refused(access_says_writable: bool, fragment: str, tmp_path: Path,
+                                                capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    """As any user, root included: the directory's mode is 0o555, and the kernel's refusal is what a user other than
+    root meets (``_refuse_writes_in``)."""
+    scenario_file = _write(tmp_path / "ok.json", GOOD)
     locked = tmp_path / "locked"
     locked.mkdir(mode=0o555)
-    assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(locked / "out")]) == 2
-    assert "is not writable" in capsys.readouterr().err
+    _refuse_writes_in(locked, monkeypatch, access_says_writable)
+    assert main(["simulate", str(scenario_file), "--out", str(locked / "out")]) == 2
+    stderr = capsys.readouterr().err
+    lines = stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("ea-gym simulate: error: ") and fragment in lines[0], stderr
+    assert "Traceback" not in stderr
     assert not any(locked.iterdir())
 
 
@@ -205,6 +252,13 @@ def test_outputs_move_into_an_existing_directory_together(tmp_path: Path) -> Non
     assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(out)]) == 0
     assert sorted(path.name for path in out.iterdir()) == ["energy.json", "energy.png", "notes.txt"]
     assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".")] == []  # no staging left
+
+
+def test_out_at_the_working_directory_is_written_in_place(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``--out .`` (a path without parents) is the working directory, not a traceback."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", "."]) == 0
+    assert sorted(path.name for path in tmp_path.iterdir()) == ["energy.json", "energy.png", "ok.json"]
 
 
 def test_a_bad_scenario_is_refused_before_heavy_imports(tmp_path: Path) -> None:

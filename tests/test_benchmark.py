@@ -105,6 +105,33 @@ def test_figures_are_pngs_and_the_timelines_share_one_seed(tiny):
     assert timelines["run_to_failure"]["actions"] == []
 
 
+def test_the_benchmark_command_moves_its_outputs_in_together_and_records_the_final_path(tiny, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    tuned = tiny[0] / "tuned" / "rules.json"
+    argv = ["benchmark", "--episodes", "1", "--no-ppo", "--tuned", str(tuned), "--allow-stale", "--env", "horizon=20", "--no-progress"]
+    assert main([*argv, "--out", "results/run"]) == 0, capsys.readouterr().err
+    assert [path.name for path in (tmp_path / "results").iterdir()] == ["run"]  # no staging directory left beside it
+    assert sorted(path.name for path in (tmp_path / "results" / "run").iterdir()) == [
+        "benchmark.json", "benchmark.md", "cost_distribution.png", "timelines.json", "timelines.png"]
+    result = json.loads((tmp_path / "results" / "run" / "benchmark.json").read_text())
+    assert " --out results/run " in result["commands"]["reproduce"]
+    assert "results/.run." not in (tmp_path / "results" / "run" / "benchmark.md").read_text()
+
+
+def test_a_failed_benchmark_writes_nothing(tmp_path, monkeypatch):
+    """The tuning and evaluation done, the second figure fails: neither the outputs, nor the directories above them, nor
+    the tuned settings appear."""
+
+    def fail(*args, **kwargs):
+        raise RuntimeError("the figure failed")
+
+    monkeypatch.setattr(benchmark_run, "plot_timelines", fail)  # after cost_distribution.png was written
+    with pytest.raises(RuntimeError, match="the figure failed"):
+        run_benchmark(1, 0, tmp_path / "new" / "out", None, tune_episodes=1, progress=False, tune=True, grids=GRIDS,
+                      env_kwargs={"horizon": 20}, write_tuned_to=tmp_path / "tuned.json")
+    assert not any(tmp_path.iterdir())
+
+
 def test_evaluation_seeds_never_meet_training_validation_or_tuning_seeds():
     from agents.conventions import TRAINING_SEED, VALIDATION_SEED
 

@@ -164,3 +164,62 @@ def test_train_command_rejects_negative_dagger_rounds(capsys):
     with pytest.raises(SystemExit):
         main(["train", "--dagger-rounds", "-1", "--out", "x"])
     assert "expected an integer >= 0" in capsys.readouterr().err
+
+
+#: a train command line of a few seconds: A2C's rollouts are 16 steps per environment
+TINY_TRAIN = ["train", "--algo", "a2c", "--obs-mode", "oracle", "--n-envs", "2", "--timesteps", "64", "--eval-every", "32",
+              "--eval-episodes", "1", "--env", "horizon=50", "--no-progress"]
+
+
+def _files(directory):
+    return {str(path.relative_to(directory)): path.read_bytes() for path in sorted(directory.rglob("*")) if path.is_file()}
+
+
+def test_the_train_command_writes_its_directory_whole_and_continues_it(tmp_path, capsys):
+    """--out appears when the run completes, no staging directory left and no staging path recorded; resumed from
+    itself, the run adds its checkpoints beside the earlier ones."""
+    out = tmp_path / "runs" / "a"
+    assert main([*TINY_TRAIN, "--out", str(out)]) == 0, capsys.readouterr().err
+    assert [path.name for path in (tmp_path / "runs").iterdir()] == ["a"]  # the staging directory was moved in
+    assert sorted(path.name for path in (out / "checkpoints").iterdir()) == ["a2c_32_steps", "a2c_64_steps"]
+    selected = json.loads((out / "training.json").read_text())["selected"]["steps"]  # what --resume out continues
+    assert main([*TINY_TRAIN, "--resume", str(out), "--out", str(out)]) == 0, capsys.readouterr().err
+    assert [path.name for path in (tmp_path / "runs").iterdir()] == ["a"]
+    summary = json.loads((out / "training.json").read_text())
+    added = {e["directory"].removeprefix("checkpoints/") for e in summary["evaluations"] if e["directory"] != "last"}
+    assert added and {path.name for path in (out / "checkpoints").iterdir()} == {"a2c_32_steps", "a2c_64_steps"} | added
+    assert summary["resumed_from"] == str(out) and summary["last"] == {"steps": selected + 64, "directory": "last"}
+    assert load_policy(out / "last").num_timesteps == selected + 64
+    for name, data in _files(out).items():  # no file names the staging directory (.a.XXXX beside out)
+        assert f"{out.parent}/.a." not in data.decode("latin-1"), name
+    assert "wrote " + str(out) in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("failure", [RuntimeError("the learner failed"), KeyboardInterrupt()], ids=["exception", "interrupt"])
+def test_a_failed_train_command_leaves_out_as_it_was(tmp_path, monkeypatch, capsys, failure):
+    """The run fails at its very end (checkpoints and ``last`` written): a new --out does not appear, nor the directories
+    above it; a continued --out keeps its earlier files, byte for byte."""
+    import agents.training
+
+    def fail(*args, **kwargs):
+        raise failure
+
+    assert main([*TINY_TRAIN, "--out", str(tmp_path / "done")]) == 0, capsys.readouterr().err
+    before = _files(tmp_path / "done")
+    monkeypatch.setattr(agents.training, "write_json", fail)  # training.json, the run's last file
+    done = str(tmp_path / "done")
+    for argv in ([*TINY_TRAIN, "--out", str(tmp_path / "new" / "out")], [*TINY_TRAIN, "--resume", done, "--out", done]):
+        with pytest.raises(type(failure)):
+            main(argv)
+        assert sorted(path.name for path in tmp_path.iterdir()) == ["done"]
+        assert _files(tmp_path / "done") == before
+
+
+def test_the_train_command_refuses_a_non_empty_out_it_does_not_continue(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.txt").write_text("kept")
+    assert main([*TINY_TRAIN, "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.count("\n") == 1 and "--out: " in error and "exists and is not empty" in error
+    assert [path.name for path in tmp_path.iterdir()] == ["out"] and _files(out) == {"notes.txt": b"kept"}

@@ -33,7 +33,7 @@ from agents.benchmark.tuning import rule_builders, tune_rules
 from agents.conventions import TRAINING_SEED, VALIDATION_SEED, refuse_pickle
 from agents.policies import ActionMap
 from ea_gym.env import env_id
-from ea_gym.files import json_ready, write_json, write_text
+from ea_gym.files import check_output_directory, json_ready, staged_output, write_json, write_text
 from ea_gym.threads import single_threaded_torch
 
 __all__ = ["run_benchmark", "TUNE_EPISODES", "MAX_ENVS"]
@@ -60,7 +60,7 @@ def run_benchmark(
         episodes: evaluation episodes per policy (>= 2 for confidence intervals; 1 gives none).
         seed: benchmark seed: evaluation seeds ``100_000 + seed * 10_000 + i``, i < episodes.
         out: output directory (created): benchmark.json, benchmark.md, cost_distribution.png,
-            timelines.png, timelines.json.
+            timelines.png, timelines.json, written beside it and moved in together when the run completes.
         ppo: directory of a trained agent (``ea-gym train --out DIR``) evaluated as ``ppo`` on its own
             training obs_mode; None, or a directory without a model, skips it (noted in the outputs).
         tune_episodes: with ``tune``, the tuning episodes (seeds 0 .. tune_episodes - 1) per grid
@@ -68,7 +68,7 @@ def run_benchmark(
         progress: progress bars and one line per stage.
         tune: grid-search the rules on the tuning seeds; otherwise read their tuned settings from ``tuned_file``.
         tuned_file: the tuned settings to read (default ``TUNED_RULES_FILE``); refused with ``tune``.
-        write_tuned_to: with ``tune``, write the tuned settings there (``tuned.TunedRules``).
+        write_tuned_to: with ``tune``, write the tuned settings there (``tuned.TunedRules``), with the outputs.
         allow_stale: use a tuned file made on another environment instead of refusing it (the outputs say so).
         max_envs: the most systems stepped at once on one vector environment; the policies of one obs_mode (and
             the values of one grid) run side by side on it; the timelines step one environment.
@@ -90,6 +90,7 @@ def run_benchmark(
     started = time.perf_counter()
     out = Path(out)
     env_kwargs = dict(env_kwargs or {})
+    _check_writable(out, write_tuned_to)  # before the tuning and the evaluation, not after them
     evaluation, tuning, grids, extra = _checked(episodes, seed, tune, tune_episodes, tuned_file, write_tuned_to, grids, env_kwargs,
                                                 ppo_policies, max_envs, ppo, trust_pickle)
     timeline_seed = evaluation.start if timeline_seed is None else int(timeline_seed)
@@ -117,13 +118,17 @@ def run_benchmark(
         stats, timelines = evaluate_policies(plan, order, make, evaluation, timeline_seed, env_kwargs, stopwatch, max_envs, runner)
     rows, ranking = policy_rows(plan, order, stats)
     rows = json_ready(rows)
-    _write_figures(out, rows, timelines, stopwatch)
-    stopwatch.timings["total"] = time.perf_counter() - started
-    result = _result(rows, ranking, skipped, _seeds(evaluation, tuned.tuning_seeds, seed, timeline_seed),
-                     {"reproduce": command, "note": command_note}, environment, tuned.tables, source,
-                     value_of_information(plan, order, stats), stopwatch.timings)
-    write_json(out / "benchmark.json", result)
-    write_text(out / "benchmark.md", markdown(result))
+    with staged_output(out, last="benchmark.json") as staging:  # every output appears together when the run completes
+        _write_figures(staging, rows, timelines, stopwatch)
+        stopwatch.timings["total"] = time.perf_counter() - started
+        result = _result(rows, ranking, skipped, _seeds(evaluation, tuned.tuning_seeds, seed, timeline_seed),
+                         {"reproduce": command, "note": command_note}, environment, tuned.tables, source,
+                         value_of_information(plan, order, stats), stopwatch.timings)
+        write_json(staging / "benchmark.json", result)
+        write_text(staging / "benchmark.md", markdown(result))
+        if tune and write_tuned_to is not None:
+            write_tuned(write_tuned_to, tuned)
+            stopwatch.say(f"wrote the tuned settings to {write_tuned_to}")
     stopwatch.say(f"wrote {out}/benchmark.json, benchmark.md, cost_distribution.png, timelines.png in {stopwatch.timings['total']:.0f} s")
     return result
 
@@ -138,18 +143,24 @@ def _read_rules(path: Path, settings: Mapping[str, Any], allow_stale: bool) -> T
 
 
 def _source(tuned: TunedRules, settings: Mapping[str, Any], path: Path | None, tune: bool, stopwatch: Stopwatch) -> dict[str, Any]:
-    """Where the tuned settings came from, for the outputs; a tuning run writes them to ``path`` when given."""
+    """Where the tuned settings came from, for the outputs (a tuning run writes them to ``path`` with the outputs)."""
     current = fingerprint(settings)
-    if tune and path is not None:
-        write_tuned(path, tuned)
-        stopwatch.say(f"wrote the tuned settings to {path}")
-    elif not tune:
+    if not tune:
         assert path is not None  # the default file when none was given
         stale = tuned.fingerprint != current
         stopwatch.say(f"tuned settings from {display_path(path)}" + (" (STALE: tuned on another environment)" if stale else ""))
     return {"tuned": "in this run" if tune else "read from the file", "file": None if path is None else display_path(path),
             "stale": tuned.fingerprint != current, "command": tuned.command, "fingerprint": tuned.fingerprint,
             "current_fingerprint": current}
+
+
+def _check_writable(out: Path, write_tuned_to: Path | None) -> None:
+    """The output directory and the tuned settings' file can be written (``files.OutputError`` naming them otherwise)."""
+    check_output_directory(out)
+    if write_tuned_to is not None:
+        check_output_directory(Path(write_tuned_to).parent)
+        if Path(write_tuned_to).is_dir():
+            raise ValueError(f"--write-tuned: {write_tuned_to} is a directory; expected a file to write")
 
 
 def _checked(
@@ -255,8 +266,7 @@ def _seeds(evaluation: range, tuning: range, seed: int, timeline_seed: int) -> d
 
 
 def _write_figures(out: Path, rows: Mapping[str, Any], timelines: Mapping[str, Any], stopwatch: Stopwatch) -> None:
-    """cost_distribution.png, timelines.png and timelines.json in ``out`` (created)."""
-    out.mkdir(parents=True, exist_ok=True)
+    """cost_distribution.png, timelines.png and timelines.json in ``out``."""
     stopwatch.timed("figures", lambda: (plot_cost_distribution(rows, out / "cost_distribution.png"),
                                         plot_timelines(timelines, rows, out / "timelines.png")))
     write_json(out / "timelines.json", json_ready(timelines))
