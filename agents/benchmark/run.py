@@ -90,8 +90,7 @@ def run_benchmark(
     started = time.perf_counter()
     out = Path(out)
     env_kwargs = dict(env_kwargs or {})
-    _check_writable(out, write_tuned_to)  # before the tuning and the evaluation, not after them
-    evaluation, tuning, grids, extra = _checked(episodes, seed, tune, tune_episodes, tuned_file, write_tuned_to, grids, env_kwargs,
+    evaluation, tuning, grids, extra = _checked(out, episodes, seed, tune, tune_episodes, tuned_file, write_tuned_to, grids, env_kwargs,
                                                 ppo_policies, max_envs, ppo, trust_pickle)
     timeline_seed = evaluation.start if timeline_seed is None else int(timeline_seed)
     if command is None:
@@ -124,11 +123,7 @@ def run_benchmark(
         result = _result(rows, ranking, skipped, _seeds(evaluation, tuned.tuning_seeds, seed, timeline_seed),
                          {"reproduce": command, "note": command_note}, environment, tuned.tables, source,
                          value_of_information(plan, order, stats), stopwatch.timings)
-        write_json(staging / "benchmark.json", result)
-        write_text(staging / "benchmark.md", markdown(result))
-        if tune and write_tuned_to is not None:
-            write_tuned(write_tuned_to, tuned)
-            stopwatch.say(f"wrote the tuned settings to {write_tuned_to}")
+        _write_reports(staging, result, tuned if tune else None, write_tuned_to, stopwatch)
     stopwatch.say(f"wrote {out}/benchmark.json, benchmark.md, cost_distribution.png, timelines.png in {stopwatch.timings['total']:.0f} s")
     return result
 
@@ -164,12 +159,13 @@ def _check_writable(out: Path, write_tuned_to: Path | None) -> None:
 
 
 def _checked(
-    episodes: int, seed: int, tune: bool, tune_episodes: int | None, tuned_file: Path | None, write_tuned_to: Path | None,
+    out: Path, episodes: int, seed: int, tune: bool, tune_episodes: int | None, tuned_file: Path | None, write_tuned_to: Path | None,
     grids: Mapping[str, Sequence[Any]] | None, env_kwargs: Mapping[str, Any], ppo_policies: Mapping[str, Path] | None, max_envs: int,
     ppo: Path | None, trust_pickle: bool,
 ) -> tuple[range, range, dict[str, tuple[Any, ...]], dict[str, Path | None]]:
-    """run_benchmark's arguments checked before any work: the evaluation and tuning seeds, the grids, the extra agents
-    (and no agent of pickled files unless ``trust_pickle``)."""
+    """run_benchmark's arguments checked before any work: the outputs writable, the evaluation and tuning seeds, the grids,
+    the extra agents (and no agent of pickled files unless ``trust_pickle``)."""
+    _check_writable(out, write_tuned_to)
     for directory in (ppo, *(ppo_policies or {}).values()):
         if directory is not None:
             refuse_pickle(Path(directory), trust_pickle)
@@ -270,6 +266,15 @@ def _write_figures(out: Path, rows: Mapping[str, Any], timelines: Mapping[str, A
     stopwatch.timed("figures", lambda: (plot_cost_distribution(rows, out / "cost_distribution.png"),
                                         plot_timelines(timelines, rows, out / "timelines.png")))
     write_json(out / "timelines.json", json_ready(timelines))
+
+
+def _write_reports(out: Path, result: Mapping[str, Any], tuned: TunedRules | None, write_tuned_to: Path | None, stopwatch: Stopwatch) -> None:
+    """benchmark.json and benchmark.md in ``out``; the settings of a tuning run (``tuned``) in ``write_tuned_to`` when given."""
+    write_json(out / "benchmark.json", result)
+    write_text(out / "benchmark.md", markdown(result))
+    if tuned is not None and write_tuned_to is not None:
+        write_tuned(write_tuned_to, tuned)
+        stopwatch.say(f"wrote the tuned settings to {write_tuned_to}")
 
 
 def _result(
