@@ -6,6 +6,7 @@ runner process whose episodes all end at the horizon.
 """
 
 import importlib.util
+from pathlib import Path
 
 import pytest
 
@@ -13,6 +14,8 @@ from ea_gym.cli import main
 
 HAS_RLLIB = importlib.util.find_spec("ray") is not None and importlib.util.find_spec("ray.rllib") is not None
 needs_rllib = pytest.mark.skipif(not HAS_RLLIB, reason="needs the rllib extra: bash scripts/test_ray.sh")
+#: the committed PPO agent (agents/data/ppo_phm)
+PPO_AGENT = Path(__file__).resolve().parents[1] / "agents" / "data" / "ppo_phm"
 
 
 @pytest.mark.skipif(HAS_RLLIB, reason="the message shown where ray is missing")
@@ -108,22 +111,77 @@ def test_batches_split_into_chunks_per_worker_give_the_same_records():
 
 @needs_rllib
 def test_benchmark_on_ray_records_equal_the_local_run(tmp_path):
-    """Tuning and evaluation as Ray tasks on a local Ray of 2 CPUs (3 seeds: chunks of 2 and 1) against this process."""
+    """Tuning and evaluation, the committed PPO agent's among them, as Ray tasks on a local Ray of 2 CPUs
+    (3 seeds: chunks of 2 and 1) against this process."""
     from agents.benchmark.run import run_benchmark
     from agents.benchmark.runners import RayRunner
 
     grids = {"oracle": [5, 20], "rul_threshold": [5], "corrective_band": [{"k": 0.8, "m": 0.8, "b": 0.4}], "periodic": [20, 60]}
     kwargs = {"tune_episodes": 3, "progress": False, "tune": True, "grids": grids, "env_kwargs": {"horizon": 60}}
-    local = run_benchmark(3, 0, tmp_path / "local", None, **kwargs)
+    local = run_benchmark(3, 0, tmp_path / "local", PPO_AGENT, **kwargs)
     assert RayRunner(None, num_cpus=2).workers == 2  # the local Ray that ray="local" joins
-    remote = run_benchmark(3, 0, tmp_path / "ray", None, ray="local", **kwargs)
+    remote = run_benchmark(3, 0, tmp_path / "ray", PPO_AGENT, ray="local", **kwargs)
+    assert "ppo" in local["policies"] and local["skipped"] == remote["skipped"] == {}
     for key in ("policies", "ranking", "tuning", "value_of_information", "seeds"):
         assert remote[key] == local[key], key
 
 
-def test_benchmark_ray_refuses_a_trained_agent_before_any_work(tmp_path, capsys):
+def test_a_trained_agent_travels_as_its_files_and_acts_as_loaded_here():
+    """What a Ray task receives: the batch pickled (cloudpickle, as Ray sends it) and unpickled. The agent
+    arrives as its files' bytes and loads again: the same weights, normalisation and actions, and a
+    side-by-side evaluation with a rule gives the local records."""
+    import cloudpickle
+    import numpy as np
+    import torch
+
+    from agents.benchmark.batches import evaluate_side_by_side
+    from agents.benchmark.runners import LocalRunner
+    from agents.benchmark.settings import env_factory, vector_env_factory
+    from agents.policies import ActionMap, RulThreshold
+    from agents.portable_agent import PortableAgent
+    from agents.training import load_policy
+
+    agent = PortableAgent(PPO_AGENT)
+    arrived = cloudpickle.loads(cloudpickle.dumps(agent))
+    assert len(cloudpickle.dumps(agent)) < 2 * sum(map(len, agent.files.values()))  # the bytes, no environment
+    here, there = load_policy(PPO_AGENT), arrived.policy()
+    assert there is not agent.policy() and arrived.obs_mode == agent.obs_mode == "phm"
+    assert set(here.policy.state_dict()) == set(there.policy.state_dict())
+    assert all(torch.equal(tensor, there.policy.state_dict()[name]) for name, tensor in here.policy.state_dict().items())
+    assert here.normalization.observations.keys() == there.normalization.observations.keys()
+
+    class Journey(LocalRunner):
+        """Each batch pickled and unpickled before it runs."""
+
+        def run(self, batches):
+            return [cloudpickle.loads(cloudpickle.dumps(batch))() for batch in batches]
+
+    probe = env_factory("phm")()
+    actions = ActionMap.from_env(probe)
+    observations = [probe.reset(seed=3)[0]]
+    for _ in range(499):  # never maintained, the machine wears: the agent acts from step 202 on
+        observations.append(probe.step(0)[0])
+    probe.close()
+    batch = {key: np.stack([o[key] for o in observations]) for key in observations[0]}
+    chosen = arrived.predict(batch)[0]
+    assert np.array_equal(chosen, here.predict(batch)[0]) and len(set(chosen.tolist())) > 1
+    make = vector_env_factory("phm", horizon=40)
+    policies = {"ppo": agent, "rul_threshold": RulThreshold(actions, 5.0, action="corrective")}
+    local = evaluate_side_by_side(policies, make, range(20, 23), False, 100)
+    sent = evaluate_side_by_side(policies, make, range(20, 23), False, 100, runner=Journey())
+    for name in policies:
+        for key, values in local[name].per_episode.items():
+            assert sent[name].per_episode[key].tolist() == values.tolist(), (name, key)
+
+
+def test_benchmark_ray_refuses_an_agent_of_pickled_files_before_any_work(tmp_path, capsys):
+    """stable-baselines3's files would be unpickled on the workers: refused with Ray, even when trusted here."""
+    agent = tmp_path / "agent"
+    agent.mkdir()
+    (agent / "model.zip").write_bytes(b"PK\x03\x04")
+    (agent / "vecnormalize.pkl").write_bytes(b"\x80\x04")
     out = tmp_path / "benchmark"
-    assert main(["benchmark", "--ray", "--episodes", "2", "--ppo", str(tmp_path / "agent"), "--no-progress", "--out", str(out)]) == 2
+    assert main(["benchmark", "--ray", "--episodes", "2", "--ppo", str(agent), "--trust-pickle", "--no-progress", "--out", str(out)]) == 2
     error = capsys.readouterr().err
-    assert error.count("\n") == 1 and "--no-ppo" in error
+    assert error.count("\n") == 1 and "convert-agent" in error and "--ray" in error
     assert not out.exists()

@@ -78,14 +78,17 @@ def plan_policies(
             say(f"skipping {name}: {why}")
             continue
         assert directory is not None  # agent_missing says why otherwise
-        plan[name] = _plan_agent(Path(directory))
+        plan[name] = _plan_agent(Path(directory), trust_pickle)
     return plan, skipped
 
 
-def _plan_agent(directory: Path) -> dict[str, Any]:
-    from agents.training import load_policy  # loads torch: imported only when an agent is evaluated
+def _plan_agent(directory: Path, trust_pickle: bool) -> dict[str, Any]:
+    """An agent directory as a ``PortableAgent`` (it travels to Ray workers); stable-baselines3's files, when
+    trusted, as ``load_policy`` loads them (they stay in this process: ``runners.runner_for``)."""
+    from agents.portable_agent import PortableAgent  # loads torch: imported only when an agent is evaluated
+    from agents.training import load_policy
 
-    policy = load_policy(directory)
+    policy = load_policy(directory, trust_pickle=True) if trust_pickle and pickled(directory) else PortableAgent(directory)
     summary = json.loads((directory / SUMMARY_FILE).read_text())
     run = summary.get("run", {})
     algo = str(run.get("algo", "ppo")).upper()

@@ -30,7 +30,7 @@ from agents.benchmark.settings import (
 from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.tuned import TUNED_RULES_FILE, TunedRules, environment_settings, fingerprint, read_tuned, write_tuned
 from agents.benchmark.tuning import rule_builders, tune_rules
-from agents.conventions import TRAINING_SEED, VALIDATION_SEED, refuse_pickle
+from agents.conventions import TRAINING_SEED, VALIDATION_SEED, pickled, refuse_pickle
 from agents.policies import ActionMap
 from ea_gym.env import env_id
 from ea_gym.files import check_output_directory, json_ready, staged_output, write_json, write_text
@@ -96,7 +96,7 @@ def run_benchmark(
     if command is None:
         command = _default_command(episodes, seed, out, ppo, tune, tuning, tuned_file, write_tuned_to, allow_stale)
         command_note = _defaults_note(command_note, extra, grids, env_kwargs)
-    stopwatch, runner = Stopwatch(progress), runner_for(ray, [ppo, *extra.values()])
+    stopwatch, runner = Stopwatch(progress), runner_for(ray, [Path(d) for d in (ppo, *extra.values()) if d is not None and pickled(Path(d))])
     make = lambda mode: vector_env_factory(mode, **env_kwargs)  # noqa: E731
     actions, environment, settings = _environment(env_kwargs)
     builders = rule_builders(actions)

@@ -5,13 +5,15 @@ A batch is one ``agents.evaluation.evaluate`` call: a policy (or several side by
 alone, so the records are the same wherever and in whatever chunks the batches run. ``RayRunner``
 sends each batch to a Ray task (one CPU each) on a local Ray or a cluster (``ray start --head``;
 every node needs ea-gym installed) and splits the seeds into at least as many chunks as the cluster
-has CPUs.
+has CPUs. A trained agent travels as its files' bytes and is loaded on the worker
+(``agents.portable_agent``).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Protocol
 
 from agents.evaluation import EpisodeStats
@@ -83,12 +85,13 @@ def _run_batch(batch: Batch) -> EpisodeStats:
         return batch()
 
 
-def runner_for(ray: str | None, trained_agents: Sequence[object] = ()) -> BatchRunner:
-    """``LocalRunner`` for None; ``RayRunner`` for ``"local"`` (a local Ray) or a cluster's address, which
-    refuses ``trained_agents`` (any not None): a loaded agent's observation wrapper holds an environment
-    that does not travel to the workers, so only the rules' episodes run as Ray tasks."""
+def runner_for(ray: str | None, pickled_agents: Sequence[Path] = ()) -> BatchRunner:
+    """``LocalRunner`` for None; ``RayRunner`` for ``"local"`` (a local Ray) or a cluster's address. Trained agents
+    travel to the workers as their files' bytes (``agents.portable_agent``), but not agents of stable-baselines3's
+    files (``pickled_agents``), which would be unpickled there: those are refused with Ray."""
     if ray is None:
         return LocalRunner()
-    if any(agent is not None for agent in trained_agents):
-        raise ValueError("--ray runs the rule policies only (a trained agent does not travel to Ray workers): add --no-ppo")
+    if pickled_agents:
+        raise ValueError(f"--ray sends agent directories to the workers, not stable-baselines3's files ({pickled_agents[0]}): "
+                         "convert them first with ea-gym convert-agent SRC DST --trust-pickle")
     return RayRunner(None if ray == "local" else ray)
