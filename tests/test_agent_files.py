@@ -17,8 +17,10 @@ import torch
 from stable_baselines3.common.save_util import load_from_zip_file
 
 from agents.agent_files import ALGORITHMS, build_policy, load_optimizer, read_agent, save_agent
+from agents.benchmark.evaluation import plan_policies
 from agents.benchmark.run import run_benchmark
 from agents.conventions import UntrustedFileError
+from agents.policies import ActionMap
 from agents.training import TrainingRun, convert_agent, hyperparameters, load_policy, make_vec_env, normalize, train, trained_environment
 from ea_gym.cli import main
 from ea_gym.env.sb3 import MaintenanceVecEnv
@@ -242,6 +244,9 @@ def test_trusted_sb3_files_load_convert_and_resume(tmp_path, observations, capsy
     env.save(str(legacy / "vecnormalize.pkl"))
     (legacy / "training.json").write_text(json.dumps({"run": asdict(run)}))
     _assert_acts_as(load_policy(legacy, trust_pickle=True), model, env, observations)
+    plan, skipped = plan_policies({}, {}, ActionMap.from_env(env), {"ppo": legacy}, print, trust_pickle=True)  # the benchmark's
+    assert skipped == {} and plan["ppo"]["obs_mode"] == "oracle"
+    _assert_acts_as(plan["ppo"]["policy"], model, env, observations)
     assert main(["convert-agent", str(legacy), str(tmp_path / "converted"), "--trust-pickle"]) == 0
     _assert_acts_as(load_policy(tmp_path / "converted"), model, env, observations)
     assert json.loads((tmp_path / "converted" / "training.json").read_text()) == {"run": asdict(run)}
