@@ -26,7 +26,7 @@ import numpy as np
 
 from ea_gym.documents import FileTooLargeError, NotRegularFileError, read_regular_file
 from ea_gym.files import write_atomic
-from ea_gym.models import SystemModel
+from ea_gym.models import ParameterError, SystemModel
 from ea_gym.numerics import TINY
 
 #: the largest CSV read (bytes): about 6 hours at 100 Hz of a model with four storage elements
@@ -87,7 +87,8 @@ def read_measurements(
 
     Raises:
         MeasurementError: not a regular file, too large, a missing, extra or repeated column, a row of
-            the wrong length, a cell that is not a finite number, or times that do not increase uniformly.
+            the wrong length, a cell that is not a finite number, times that do not increase uniformly, or a
+            sample rate too low for the model's fastest mode (``SystemModel.check_resolved``).
     """
     path = Path(path)
     try:
@@ -113,7 +114,12 @@ def read_measurements(
         raise MeasurementError(f"{path}: {len(table)} sample(s); a record needs at least 2")
     table = table[:, order]
     _check_times(path, table[:, 0])
-    return Measurements(t=table[:, 0], load=table[:, 1], signals=table[:, 2:])
+    measurements = Measurements(t=table[:, 0], load=table[:, 1], signals=table[:, 2:])
+    try:
+        model.check_resolved(measurements.sample_rate, "sample rate")
+    except ParameterError as error:
+        raise MeasurementError(f"{path}: {error}") from None
+    return measurements
 
 
 def _column_order(path: Path, header: list[str], model: SystemModel) -> list[int]:

@@ -261,7 +261,7 @@ def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _P
     checked.value = float(value)
     if checked.kind is Kind.C:
         form = spec.get("form", "compliance")
-        if form in _C_FORMS:
+        if isinstance(form, str) and form in _C_FORMS:
             checked.form = _C_FORMS[form]
         else:
             problems.add(f"{where}.form", f"expected stiffness or compliance, got {_describe(form)}")

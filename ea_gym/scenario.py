@@ -271,8 +271,10 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
     problems: list[str] = []
     try:
         model = model.with_overrides(spec.parameters, spec.limits)
+        model.check_resolved(spec.sample_rate, "sample_rate")
     except ParameterError as exc:
         problems.append(str(exc))
+    resolved = not problems
     problems += _sampling_problems(spec)
     for key in spec.initial_state:
         if key not in model.state_names:
@@ -282,7 +284,7 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
             )
     fault = None
     if spec.fault is not None:
-        fault, fault_problems = _fault(model, spec.fault)
+        fault, fault_problems = _fault(model, spec.fault, spec.sample_rate if resolved else None)
         problems += fault_problems
     if problems:
         raise ScenarioError.from_problems(name, problems)
@@ -331,7 +333,9 @@ def _sampling_problems(spec: ScenarioSpec) -> list[str]:
     return problems
 
 
-def _fault(model: SystemModel, fields: FaultFields) -> tuple[FaultSpec | None, list[str]]:
+def _fault(model: SystemModel, fields: FaultFields, sample_rate: float | None) -> tuple[FaultSpec | None, list[str]]:
+    """The fault's parameter and profile checked; with ``sample_rate`` (None: the model is not resolved even at its
+    nominal values, already said), the model's fastest mode at every value of the profile too."""
     try:
         model.check_name(fields.parameter, "fault.parameter")
     except ParameterError as exc:
@@ -342,6 +346,13 @@ def _fault(model: SystemModel, fields: FaultFields) -> tuple[FaultSpec | None, l
             model.check_near_nominal(fields.parameter, value, f"fault.profile[{i}]")
         except ParameterError as exc:
             problems.append(str(exc))
+    if not problems and sample_rate is not None:  # the fastest mode at every corner of the (piecewise linear) profile
+        for i, (_, value) in enumerate(fields.profile):
+            try:
+                model.check_resolved(sample_rate, f"fault.profile[{i}]", {fields.parameter: value})
+            except ParameterError as exc:
+                problems.append(str(exc))
+                break
     try:
         profile = PiecewiseLinearProfile(tuple(t for t, _ in fields.profile), tuple(v for _, v in fields.profile))
     except ProfileError as exc:

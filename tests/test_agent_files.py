@@ -1,19 +1,18 @@
 """Agents as JSON and safetensors (agents.agent_files): a saved agent acts exactly as the trained one, and
 files that would run code when loaded (SB3 zips, pickles) are refused unless the user trusts them."""
 
-import base64
 import contextlib
 import json
 import os
 import pickle
 import shutil
-import zipfile
 from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 import torch
+from payloads import malicious_agent  # tests/payloads.py
 from stable_baselines3.common.save_util import load_from_zip_file
 
 from agents.agent_files import ALGORITHMS, build_policy, load_optimizer, read_agent, save_agent
@@ -153,26 +152,8 @@ def test_a_bad_agent_json_is_refused_naming_the_field(edit, message, tmp_path):
     assert "\n" not in str(error.value)
 
 
-class _Payload:
-    """Unpickling it creates the file ``marker`` (builtins.open): any code could run there."""
-
-    def __init__(self, marker: Path):
-        self.marker = str(marker)
-
-    def __reduce__(self):
-        return open, (self.marker, "w")
-
-
 def _malicious_agent(directory: Path, marker: Path) -> Path:
-    """An agent directory of stable-baselines3's files whose pickles run the payload."""
-    directory.mkdir(parents=True)
-    (directory / "vecnormalize.pkl").write_bytes(pickle.dumps(_Payload(marker)))
-    serialized = base64.b64encode(pickle.dumps(_Payload(marker))).decode()
-    with zipfile.ZipFile(directory / "model.zip", "w") as archive:
-        archive.writestr("data", json.dumps({"policy_class": {":type:": "<class 'abc.ABCMeta'>", ":serialized:": serialized}}))
-    (directory / "blob").write_bytes(pickle.dumps(_Payload(marker)))  # a pickle by its content, not its name
-    (directory / "training.json").write_text(json.dumps({"run": asdict(RUN)}))
-    return directory
+    return malicious_agent(directory, marker, asdict(RUN))
 
 
 def test_the_payloads_run_when_unpickled(tmp_path):

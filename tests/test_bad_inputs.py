@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 import pytest
+from payloads import malicious_agent  # tests/payloads.py
 
 import ea_gym.files
 from ea_gym.cli import main
@@ -85,6 +86,11 @@ def _under_a_file(tmp: Path) -> Path:
     return _write(tmp / "taken", "a file") / "out"
 
 
+def _evil(tmp: Path) -> Path:
+    """stable-baselines3's files of an agent whose pickles would create ``tmp/ran``: a refusal writes nothing, not even that."""
+    return malicious_agent(tmp / "evil", tmp / "ran", {"obs_mode": "oracle", "n_envs": 2})
+
+
 def _made(directory: Path) -> Path:
     directory.mkdir()
     return directory
@@ -112,6 +118,32 @@ def _no_limits(command: str) -> Setup:
     return setup
 
 
+TINY_MASS_MODEL = NO_LIMITS_MODEL.replace("value: 10.0, unit: kg", "value: 1.0e-20, unit: kg").replace(
+    "value: 100.0, unit: N/m", "value: 100.0, unit: N/m, limits: [80.0, 120.0]")
+
+
+def _tiny_mass(command: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        _write(tmp / "model.yaml", TINY_MASS_MODEL)
+        return [command, str(_write(tmp / "s.json", scenario(system="model.yaml"))), "--out", str(tmp / "out")]
+
+    return setup
+
+
+def _model_case(text: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        return ["model", str(_write(tmp / "model.yaml", text))]
+
+    return setup
+
+
+def _slow_measurements(tmp: Path) -> list[str]:
+    """A spring-mass-damper record at 0.1 Hz: its 0.5 Hz resonance is beyond Nyquist."""
+    rows = "".join(f"{10.0 * i},10.0,0.0,0.0\n" for i in range(30))
+    csv = _write(tmp / "slow.csv", "t,F,m,k\n" + rows)
+    return ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--out", str(tmp / "out")]
+
+
 CLI_CASES: list[tuple[str, Setup, str]] = [
     ("duration 1e9", _scenario_case(scenario(duration=1e9)), "at most 1000000 per run"),
     ("sample_rate 1e7", _scenario_case(scenario(sample_rate=1e7)), "at most 1000000 per run"),
@@ -131,7 +163,16 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
      "load.value: Input should be less than or equal to 1000000000"),
     ("sine amplitude 1e300", _scenario_case(scenario(load={"kind": "sines", "sines": [{"amplitude": 1e300, "frequency": 1.0}]})),
      "load.sines[0].amplitude"),
-    ("phm at 0.1 Hz", _scenario_case(scenario(sample_rate=0.1, duration=100.0), "phm"), "sample_rate: 0.1 Hz gives 0.1 samples per 1 s step"),
+    ("phm at 0.1 Hz", _scenario_case(scenario(sample_rate=0.1, duration=100.0), "phm"),
+     "sample_rate: the model's fastest mode, |lambda| = 3.16 1/s, set by "),
+    ("phm at 1.5 Hz", _scenario_case(scenario(sample_rate=1.5, duration=100.0), "phm"), "sample_rate: 1.5 Hz gives 1.5 samples per 1 s step"),
+    ("m: 1e-20 in the model file", _tiny_mass("simulate"), "m = 1e-20 kg, is not resolved at 100 Hz; expected |lambda| < pi * sample_rate"),
+    ("a fault profile faster than the sample rate",
+     _scenario_case(scenario(sample_rate=10.0, fault={"parameter": "k", "profile": [[0, 100], [5, 1e5]]})),
+     "fault.profile[1]: the model's fastest mode, |lambda| = 100 1/s"),
+    ("measurements too slow for the model", _slow_measurements, "sample rate: the model's fastest mode, |lambda| = 3.16 1/s"),
+    ("a C element's form as a list", _model_case(NO_LIMITS_MODEL.replace("form: stiffness", "form: [1]")),
+     "elements.k.form: expected stiffness or compliance, got a list"),
     ("phm on a bad scenario", _scenario_case(scenario(duration=-1.0), "phm"), "duration: Input should be greater than 0"),
     ("simulate --window 1e9", _scenario_case(GOOD, "simulate", "--window", "1e9"), "--window: 1e+09 s is longer than the run (10 s)"),
     ("simulate --window 0.015", _scenario_case(GOOD, "simulate", "--window", "0.015"), "--window: window = 0.015 s must be a positive whole number"),
@@ -149,6 +190,13 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
      "exists and is not empty; expected a new or empty directory, or the --resume agent's own directory"),
     ("benchmark --write-tuned at a directory", lambda tmp: ["benchmark", "--out", str(tmp / "out"), "--tune", "--write-tuned", str(tmp)],
      "is a directory; expected a file to write"),
+    ("train --resume an SB3 zip holding a payload", lambda tmp: ["train", "--resume", str(_evil(tmp) / "model.zip"), "--out", str(tmp / "out")],
+     "model.zip is a stable-baselines3 zip, whose data is unpickled on loading"),
+    ("train --resume a vecnormalize.pkl payload", lambda tmp: ["train", "--resume", str(_evil(tmp) / "vecnormalize.pkl"), "--out", str(tmp / "o")],
+     "vecnormalize.pkl is a pickle"),
+    ("benchmark --ppo a directory of pickles", lambda tmp: ["benchmark", "--ppo", str(_evil(tmp)), "--out", str(tmp / "out")],
+     "would run any code it holds"),
+    ("--classifier holding a pickle payload", _classifier(lambda tmp: _evil(tmp) / "blob"), "blob: not an isolation network"),
     ("train --env horizon=true", lambda tmp: ["train", "--out", str(tmp / "out"), "--env", "horizon=true"], "horizon must be an int in"),
     ("--window abc", lambda tmp: ["simulate", "x.json", "--window", "abc"], "argument --window: invalid positive_float value: 'abc'"),
 ]
@@ -340,6 +388,11 @@ API_CASES: list[tuple[str, Callable[..., Any], type[Exception], str]] = [
     ("vector reset(seed=1.5)", lambda: _vector_reset(1.5), TypeError, "seed must be an int, None or a list"),
     ("vector reset(seed=True)", lambda: _vector_reset(True), TypeError, "seed must be an int, None or a list"),
     ("an env on a model without limits", _no_limits_env, ValueError, "has no degradable parameter"),
+    ("an env on a model with m: 1e-20", lambda tmp: _env(system=str(_write(tmp / "model.yaml", TINY_MASS_MODEL))), ValueError,
+     "sample_rate: the model's fastest mode, |lambda| = 5e+19 1/s"),
+    ("an env sampled below its resonance", lambda: _env(sample_rate=0.2), ValueError, "is not resolved at 0.2 Hz"),
+    ("an env whose parts wear out of its sample rate", lambda: _env(system="dc_motor", sample_rate=7.0), ValueError,
+     "sample_rate (with Ra at its limit 1.3): the model's fastest mode, |lambda| = 25.2 1/s"),
     ("classifier=123", lambda: _env(classifier=123), TypeError, "classifier must be a FaultClassifier, a path to one or None, got int"),
     ("classifier at a missing path", lambda tmp: _env(classifier=tmp / "absent.pt"), ValueError, "absent.pt: not an isolation network"),
     ("activity_index with NaN", lambda: activity_index({"m": np.array([math.nan]), "k": np.array([1.0])}), ValueError,

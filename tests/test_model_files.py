@@ -298,3 +298,19 @@ def test_the_committed_model_files_and_their_scenarios_load(scenario):
     loaded = load_scenario(Path(__file__).parent.parent / "experiments" / "scenarios" / scenario)
     assert loaded.fault is not None and loaded.fault.parameter == "k2"
     assert loaded.model.state_names == ("m1", "k1", "k2", "m2") and "k2" in loaded.model.safe_limits
+
+
+def test_the_fastest_mode_must_be_resolved_at_the_sample_rate():
+    """|lambda| < pi * sample_rate: the spring-mass-damper's |lambda| = sqrt(k / m) = sqrt(10) 1/s (its eigenvalues
+    -b/2m +- i sqrt(k/m - (b/2m)^2), modulus sqrt(k/m)) passes just above sqrt(10) / pi Hz, not just below; a tiny mass
+    gives the real mode -b/m, set by m and b, not k."""
+    model = spring_mass_damper()
+    edge = np.sqrt(10.0) / np.pi
+    model.check_resolved(1.001 * edge, "sample_rate")
+    with pytest.raises(ParameterError, match=r"sample_rate: the model's fastest mode, \|lambda\| = 3.16 1/s") as info:
+        model.check_resolved(0.999 * edge, "sample_rate")
+    assert "m = 10 kg" in str(info.value) and "k = 100 N/m" in str(info.value) and "b = " not in str(info.value)
+    tiny_mass = model_from_data(__import__("yaml").safe_load(SMD.replace("value: 10.0, unit: kg, limits: [9.0, 11.0]", "value: 1.0e-20, unit: kg")))
+    with pytest.raises(ParameterError, match=r"\|lambda\| = 5e\+19 1/s") as info:
+        tiny_mass.check_resolved(100.0, "sample_rate")
+    assert "m = 1e-20 kg" in str(info.value) and "b = 0.5 N s/m" in str(info.value) and "k = " not in str(info.value)

@@ -191,6 +191,10 @@ def build_core(
         raise TypeError(f"system must be a model name, a model file's path or a SystemModel, got {type(system).__name__}")
     system.check_degradable()
     settings = env_config(config, **overrides)
+    system.check_resolved(settings.sample_rate, "sample_rate")
+    for name, bounds in system.safe_limits.items():  # the parts wear up to their limits
+        for bound in bounds:
+            system.check_resolved(settings.sample_rate, f"sample_rate (with {name} at its limit {bound:g})", {name: bound})
     if isinstance(classifier, (str, os.PathLike)):
         classifier = FaultClassifier.load(classifier)
     elif classifier is not None and not isinstance(classifier, FaultClassifier):
