@@ -22,16 +22,21 @@ def write_atomic(path: str | os.PathLike[str], write: Callable[[str], object]) -
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)
-    umask = os.umask(0)
-    os.umask(umask)
     try:
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp creates 0600; results are for everyone to read
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; results are for everyone to read
         write(tmp)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
     return path
+
+
+def _umask() -> int:
+    """The process's umask (reading it means setting it: set back at once)."""
+    umask = os.umask(0)
+    os.umask(umask)
+    return umask
 
 
 class OutputError(ValueError):
@@ -85,6 +90,7 @@ def staged_output(out: str | os.PathLike[str], last: str | None = None, carry_ex
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+        staging.chmod(0o777 & ~_umask())  # mkdtemp creates 0700; a new out is renamed from it, for everyone to read
     except OSError as error:
         _remove_created(created)
         raise OutputError(f"cannot write {out}: {error.strerror or error}") from None

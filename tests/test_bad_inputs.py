@@ -293,6 +293,13 @@ def test_a_full_disk_leaves_nothing_behind(tmp_path: Path, capsys: pytest.Captur
     assert _snapshot(tmp_path) == before | {"ok.json"}
 
 
+def test_a_new_out_directory_has_the_modes_of_a_made_one(tmp_path: Path) -> None:
+    """The staging directory (mkdtemp's 0700) becomes --out: it gets the mode mkdir would give, as the files do."""
+    assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(tmp_path / "out")]) == 0
+    (tmp_path / "made").mkdir()
+    assert (tmp_path / "out").stat().st_mode == (tmp_path / "made").stat().st_mode
+
+
 def test_outputs_move_into_an_existing_directory_together(tmp_path: Path) -> None:
     out = tmp_path / "out"
     out.mkdir()
