@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import math
 import sys
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
@@ -150,6 +151,8 @@ def _model(args: argparse.Namespace) -> int:
         f"load: {model.load_source}, nominal {model.nominal_load:g} {model.units.get(model.load_source, '')}".rstrip()
         + f", random loads up to {model.excitation_bandwidth:g} Hz{constant}"
     )
+    fastest = model.fastest_mode()  # SystemModel.check_resolved's rule: |lambda| < pi * sample_rate
+    print(f"fastest mode: |lambda| = {fastest:.3g} 1/s at the nominal values; a sample rate above {fastest / math.pi:.3g} Hz resolves it")
     return 0
 
 

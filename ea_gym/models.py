@@ -172,6 +172,11 @@ class SystemModel:
                 "period resolves)"
             )
 
+    def fastest_mode(self, values: Mapping[str, float] | None = None) -> float:
+        """max |lambda| over the eigenvalues of the state matrix (1/s) at the nominal values (``values`` overriding
+        some); inf when the matrix overflows."""
+        return _fastest_mode(self.state_space, self.parameter_vector(values))
+
     def check_resolved(self, sample_rate: float, what: str, values: Mapping[str, float] | None = None) -> None:
         """The model's fastest mode resolved at ``sample_rate`` (Hz), at the nominal values (``values`` overriding some).
 
@@ -187,7 +192,7 @@ class SystemModel:
             ParameterError: naming the parameters that set the fastest mode (its sensitivity to them at least half the largest).
         """
         theta = self.parameter_vector(values)
-        fastest, bound = _fastest_mode(self.state_space, theta), math.pi * sample_rate
+        fastest, bound = self.fastest_mode(values), math.pi * sample_rate
         if fastest < bound:
             return
         names = self.parameter_names

@@ -196,6 +196,7 @@ def test_the_model_command_prints_the_causality_and_a_bad_file_exits_2(tmp_path,
     text = capsys.readouterr().out
     assert "F -> v: stroke at v (F sets the effort)" in text and "k = 100 N/m, limits [85, 105]" in text
     assert "m (I): its input is its effort (integral)" in text
+    assert "fastest mode: |lambda| = 3.16 1/s at the nominal values; a sample rate above 1.01 Hz resolves it" in text  # sqrt(10)/pi
     assert main(["model", str(_write(tmp_path, SMD.replace("value: 0.5", "value: -0.5")))]) == 2
     captured = capsys.readouterr()
     assert captured.out == "" and captured.err.count("\n") == 1
@@ -307,6 +308,7 @@ def test_the_fastest_mode_must_be_resolved_at_the_sample_rate():
     model = spring_mass_damper()
     edge = np.sqrt(10.0) / np.pi
     model.check_resolved(1.001 * edge, "sample_rate")
+    assert model.fastest_mode() == pytest.approx(np.sqrt(10.0), rel=1e-12)
     with pytest.raises(ParameterError, match=r"sample_rate: the model's fastest mode, \|lambda\| = 3.16 1/s") as info:
         model.check_resolved(0.999 * edge, "sample_rate")
     assert "m = 10 kg" in str(info.value) and "k = 100 N/m" in str(info.value) and "b = " not in str(info.value)
