@@ -86,10 +86,11 @@ def staged_output(out: str | os.PathLike[str], last: str | None = None, carry_ex
     """
     out = Path(out)
     check_output_directory(out)
-    created = _missing_parents(out.parent)
+    beside = Path(os.path.abspath(out))  # "." and "a/.." name a directory, not a parent to write beside it in
+    created = _missing_parents(beside.parent)
     try:
-        out.parent.mkdir(parents=True, exist_ok=True)
-        staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+        beside.parent.mkdir(parents=True, exist_ok=True)
+        staging = Path(tempfile.mkdtemp(prefix=f".{beside.name}.", dir=beside.parent))
         staging.chmod(0o777 & ~_umask())  # mkdtemp creates 0700; a new out is renamed from it, for everyone to read
     except OSError as error:
         _remove_created(created)

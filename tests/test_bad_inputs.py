@@ -316,6 +316,19 @@ def test_out_at_the_working_directory_is_written_in_place(tmp_path: Path, monkey
     assert sorted(path.name for path in tmp_path.iterdir()) == ["energy.json", "energy.png", "ok.json"]
 
 
+def test_a_run_that_continues_the_working_directory_stages_beside_it(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``carry_existing`` with ``--out .`` (train --resume . --out .): the copy goes beside the directory, not into it."""
+    work = tmp_path / "work"
+    work.mkdir()
+    _write(work / "earlier.txt", "kept")
+    monkeypatch.chdir(work)
+    with ea_gym.files.staged_output(".", carry_existing=True) as staging:
+        assert sorted(path.name for path in staging.iterdir()) == ["earlier.txt"] and staging.parent == tmp_path
+        _write(staging / "new.txt", "added")
+    assert sorted(path.name for path in work.iterdir()) == ["earlier.txt", "new.txt"]
+    assert [path.name for path in tmp_path.iterdir()] == ["work"]
+
+
 def test_a_bad_scenario_is_refused_before_heavy_imports(tmp_path: Path) -> None:
     """Validation comes first: neither numba, scipy, torch nor Stable-Baselines3 is imported to refuse a bad file."""
     bad = _write(tmp_path / "bad.json", scenario(duration=1e9))
