@@ -111,8 +111,8 @@ def test_batches_split_into_chunks_per_worker_give_the_same_records():
 
 @needs_rllib
 def test_benchmark_on_ray_records_equal_the_local_run(tmp_path):
-    """Tuning and evaluation, the committed PPO agent's among them, as Ray tasks on a local Ray of 2 CPUs
-    (3 seeds: chunks of 2 and 1) against this process."""
+    """Tuning, evaluation and timelines, the committed PPO agent's among them, as Ray tasks on a local Ray
+    of 2 CPUs (3 seeds: chunks of 2 and 1) against this process."""
     from agents.benchmark.run import run_benchmark
     from agents.benchmark.runners import RayRunner
 
@@ -124,6 +124,7 @@ def test_benchmark_on_ray_records_equal_the_local_run(tmp_path):
     assert "ppo" in local["policies"] and local["skipped"] == remote["skipped"] == {}
     for key in ("policies", "ranking", "tuning", "value_of_information", "seeds"):
         assert remote[key] == local[key], key
+    assert (tmp_path / "ray" / "timelines.json").read_text() == (tmp_path / "local" / "timelines.json").read_text()
 
 
 def test_a_trained_agent_travels_as_its_files_and_acts_as_loaded_here():

@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Callable, Mapping
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from agents.benchmark.batches import evaluate_side_by_side
-from agents.benchmark.runners import BatchRunner
+from agents.benchmark.runners import BatchRunner, LocalRunner
 from agents.benchmark.settings import RULES, display_path
 from agents.benchmark.stopwatch import Stopwatch
 from agents.benchmark.timelines import record_timeline
@@ -111,8 +112,8 @@ def evaluate_policies(
     runner: BatchRunner | None = None,
 ) -> tuple[dict[str, EpisodeStats], dict[str, dict[str, Any]]]:
     """Every planned policy on the evaluation ``seeds`` (the policies of one obs_mode side by side on one
-    vector environment, ``batches.evaluate_side_by_side``, run by ``runner``), then one timeline episode
-    each in this process, in ``order``."""
+    vector environment, ``batches.evaluate_side_by_side``), then one timeline episode each, in ``order``;
+    ``runner`` runs both (with Ray, the timelines side by side too)."""
     stats: dict[str, EpisodeStats] = {}
     for mode in dict.fromkeys(plan[name]["obs_mode"] for name in order):
         names = [name for name in order if plan[name]["obs_mode"] == mode]
@@ -122,14 +123,9 @@ def evaluate_policies(
                                          description=f"evaluate {mode}", runner=runner)
 
         stats.update(stopwatch.timed(f"evaluate {mode} ({', '.join(names)})", run))
-    timelines: dict[str, dict[str, Any]] = {}
-    for name in order:
-
-        def timeline(entry: Mapping[str, Any] = plan[name]) -> dict[str, Any]:
-            return record_timeline(entry["policy"], entry["obs_mode"], timeline_seed, env_kwargs)
-
-        timelines[name] = stopwatch.timed(f"timeline {name}", timeline)
-    return {name: stats[name] for name in order}, timelines
+    episodes = [partial(record_timeline, plan[name]["policy"], plan[name]["obs_mode"], timeline_seed, env_kwargs) for name in order]
+    timelines = stopwatch.timed(f"timelines ({len(order)} episodes)", lambda: (runner or LocalRunner()).run(episodes))
+    return {name: stats[name] for name in order}, dict(zip(order, timelines))
 
 
 def policy_rows(

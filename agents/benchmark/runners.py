@@ -1,8 +1,9 @@
 """Where the benchmark's batches of episodes run: one after another in this process, or as Ray tasks.
 
 A batch is one ``agents.evaluation.evaluate`` call: a policy (or several side by side,
-``batches.Blocks``) on one vector environment of a chunk of seeds. An episode depends on its seed
-alone, so the records are the same wherever and in whatever chunks the batches run. ``RayRunner``
+``batches.Blocks``) on one vector environment of a chunk of seeds; or one timeline episode
+(``timelines.record_timeline``). An episode depends on its seed alone, so the records are the same
+wherever and in whatever chunks the batches run. ``RayRunner``
 sends each batch to a Ray task (one CPU each) on a local Ray or a cluster (``ray start --head``;
 every node needs ea-gym installed) and splits the seeds into at least as many chunks as the cluster
 has CPUs. A trained agent travels as its files' bytes and is loaded on the worker
@@ -14,14 +15,13 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Protocol
-
-from agents.evaluation import EpisodeStats
+from typing import Protocol, TypeVar
 
 __all__ = ["Batch", "BatchRunner", "LocalRunner", "RayRunner", "runner_for"]
 
-#: one batch of episodes: ``() -> EpisodeStats``
-Batch = Callable[[], EpisodeStats]
+Result = TypeVar("Result")
+#: one batch of episodes: ``() -> Result`` (``agents.evaluation.EpisodeStats``, or a timeline's record)
+Batch = Callable[[], Result]
 
 
 class BatchRunner(Protocol):
@@ -30,7 +30,7 @@ class BatchRunner(Protocol):
     workers: int
     remote: bool
 
-    def run(self, batches: Sequence[Batch]) -> list[EpisodeStats]:
+    def run(self, batches: Sequence[Batch[Result]]) -> list[Result]:
         """Every batch's records, in the order given."""
         ...
 
@@ -45,7 +45,7 @@ class LocalRunner:
     workers = 1
     remote = False
 
-    def run(self, batches: Sequence[Batch]) -> list[EpisodeStats]:
+    def run(self, batches: Sequence[Batch[Result]]) -> list[Result]:
         return [batch() for batch in batches]
 
     def chunk(self, seeds: int, max_envs: int) -> int:
@@ -70,14 +70,14 @@ class RayRunner:
         self.workers = max(1, int(self._ray.cluster_resources().get("CPU", 1)))
         self._task = self._ray.remote(num_cpus=1)(_run_batch)
 
-    def run(self, batches: Sequence[Batch]) -> list[EpisodeStats]:
+    def run(self, batches: Sequence[Batch[Result]]) -> list[Result]:
         return list(self._ray.get([self._task.remote(batch) for batch in batches]))
 
     def chunk(self, seeds: int, max_envs: int) -> int:
         return max(1, min(max_envs, math.ceil(seeds / self.workers)))  # a chunk per worker at least
 
 
-def _run_batch(batch: Batch) -> EpisodeStats:
+def _run_batch(batch: Batch[Result]) -> Result:
     """A Ray task's body: torch on one thread, as in the local run (the isolation network is small)."""
     from ea_gym.threads import single_threaded_torch
 
