@@ -271,7 +271,7 @@ def add_benchmark(commands: Subcommands) -> None:
     benchmark.add_argument("--allow-stale", action="store_true",
                            help="use tuned settings made on another environment instead of refusing them (the report says so)")
     benchmark.add_argument("--ray", nargs="?", const="local", default=None, metavar="ADDRESS",
-                           help="run the tuning and evaluation episodes as Ray tasks (the same records; the optional extra ea-gym[rllib]): "
+                           help="run the tuning, evaluation and timeline episodes as Ray tasks (the same records; the optional extra ea-gym[rllib]): "
                                 "on a local Ray, or on the cluster at ADDRESS (the address `ray start --head` prints, or auto)")
     benchmark.add_argument("--no-progress", action="store_true", help="no progress bars")
     benchmark.add_argument(TRUST_PICKLE, action="store_true", help=TRUST_PICKLE_HELP)
