@@ -127,10 +127,40 @@ def test_benchmark_on_ray_records_equal_the_local_run(tmp_path):
     assert (tmp_path / "ray" / "timelines.json").read_text() == (tmp_path / "local" / "timelines.json").read_text()
 
 
-def test_a_trained_agent_travels_as_its_files_and_acts_as_loaded_here():
+@needs_rllib
+def test_benchmark_on_a_cluster_of_two_nodes_joined_by_address_records_equal_the_local_run(tmp_path):
+    """--ray ADDRESS: a Ray cluster of a head and a second node (1 CPU each, both on this machine), joined by
+    its address as a real cluster's would be; the PPO agent's and the rules' records and timelines equal
+    this process's (3 seeds: chunks of 2 and 1)."""
+    import ray
+    from ray.cluster_utils import Cluster
+
+    from agents.benchmark.run import run_benchmark
+    from agents.benchmark.runners import RayRunner
+
+    ray.shutdown()  # a Ray joined by an earlier test
+    kwargs = {"progress": False, "allow_stale": True, "env_kwargs": {"horizon": 60}}
+    local = run_benchmark(3, 0, tmp_path / "local", PPO_AGENT, **kwargs)
+    cluster = Cluster(initialize_head=True, head_node_args={"num_cpus": 1})
+    try:
+        cluster.add_node(num_cpus=1)
+        assert RayRunner(cluster.address).workers == 2 and len([n for n in ray.nodes() if n["Alive"]]) == 2
+        remote = run_benchmark(3, 0, tmp_path / "cluster", PPO_AGENT, ray=cluster.address, **kwargs)
+    finally:
+        ray.shutdown()
+        cluster.shutdown()
+    assert "ppo" in local["policies"]
+    for key in ("policies", "ranking", "value_of_information", "seeds"):
+        assert remote[key] == local[key], key
+    assert (tmp_path / "cluster" / "timelines.json").read_text() == (tmp_path / "local" / "timelines.json").read_text()
+
+
+def test_a_trained_agent_travels_as_its_files_and_acts_as_loaded_here(tmp_path):
     """What a Ray task receives: the batch pickled (cloudpickle, as Ray sends it) and unpickled. The agent
-    arrives as its files' bytes and loads again: the same weights, normalisation and actions, and a
-    side-by-side evaluation with a rule gives the local records."""
+    arrives as its files' bytes and loads again without its directory: the same weights, normalisation and
+    actions, and a side-by-side evaluation with a rule gives the local records."""
+    import shutil
+
     import cloudpickle
     import numpy as np
     import torch
@@ -142,7 +172,10 @@ def test_a_trained_agent_travels_as_its_files_and_acts_as_loaded_here():
     from agents.portable_agent import PortableAgent
     from agents.training import load_policy
 
-    agent = PortableAgent(PPO_AGENT)
+    directory = tmp_path / "ppo_phm"
+    shutil.copytree(PPO_AGENT, directory)
+    agent = PortableAgent(directory)
+    shutil.rmtree(directory)  # a worker on another machine has no such directory
     arrived = cloudpickle.loads(cloudpickle.dumps(agent))
     assert len(cloudpickle.dumps(agent)) < 2 * sum(map(len, agent.files.values()))  # the bytes, no environment
     here, there = load_policy(PPO_AGENT), arrived.policy()
