@@ -52,77 +52,252 @@ def chebyshev_matrices(
             slope[i, j] = d * scale
 
 
-#: Filters run side by side, one system per lane: their loops (lanes innermost) fill the SIMD lanes.
+#: Filters run side by side, LANES to a block: their loops (lanes innermost) fill the SIMD lanes.
 LANES = 32
+
+
+@numba.njit(cache=True)
+def hermite_row(u0: float, u1: float, d0: float, d1: float, h: float) -> tuple[float, float, float, float]:
+    """The input's Taylor coefficients (value, first to third derivative) over one interval, as the plant's integrator forms them."""
+    slope = (u1 - u0) / h
+    c2 = (3.0 * slope - 2.0 * d0 - d1) / h
+    c3 = (d0 + d1 - 2.0 * slope) / (h * h)
+    return u0, d0, 2.0 * c2, 6.0 * c3
+
+
+@numba.njit(cache=True)
+def step_inputs(load: np.ndarray, load_rate: np.ndarray, measured: np.ndarray, h: float, width: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per sample k and system s, the input's coefficients W (L + 1, width, S) (``hermite_row``'s four over
+    interval k, then 1 for the constant sources' column where there is one) and the measurements Y
+    (L + 1, nx, S): what each of a system's filters reads, systems last."""
+    S, nx, samples = measured.shape
+    W = np.ones((samples, width, S))
+    Y = np.empty((samples, nx, S))
+    for s in range(S):
+        for k in range(1, samples):
+            W[k, 0, s], W[k, 1, s], W[k, 2, s], W[k, 3, s] = hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h)
+            for i in range(nx):
+                Y[k, i, s] = measured[s, i, k]
+    return W, Y
+
+
+@numba.njit(cache=True)
+def positive_zero(v: float) -> bool:
+    """v is +0.0."""
+    return v == 0.0 and math.copysign(1.0, v) > 0.0
+
+
+@numba.njit(cache=True)
+def parameter_fixed(terms: int, q: np.ndarray, own: int, lo: float, hi: float, z: np.ndarray, P: np.ndarray) -> bool:
+    """Whether a filter's parameter cannot move over the step: an interpolant of one term (no slope), no
+    process noise on it, a measurement that does not read it, theta nonzero and in range, and a drift
+    and covariance rows and columns of theta and drift all +0. Its theta, drift and their rows then stay
+    as they are, and ``track_block`` may run it over its states alone: the same bits."""
+    nx = z.shape[0] - 2
+    if terms != 1 or q[0] != 0.0 or q[1] != 0.0 or own >= 0 or z[nx] == 0.0 or not lo <= z[nx] <= hi or not positive_zero(z[nx + 1]):
+        return False
+    for a in range(nx, nx + 2):
+        for c in range(nx + 2):
+            if not (positive_zero(P[a, c]) and positive_zero(P[c, a])):
+                return False
+    return True
+
+
+@numba.njit(cache=True)
+def track(
+    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
+    state_noise: float, forget: float, h: float, drift_time: np.ndarray,
+    systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
+    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
+) -> None:
+    """Run every hypothesis's filter of the listed systems over samples 1..L of their step (in place).
+
+    The S x H filters run LANES at a time; those whose parameter is fixed (``parameter_fixed``: the
+    "none" hypothesis's) in blocks of their own, over their states alone.
+
+    Args:
+        coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis;
+            terms (H,): how many are used.
+        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``correct``.
+        q: (H, 2) process-noise variances per sample of theta and drift.
+        state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
+        forget: factor on the log-likelihoods per sample.
+        h: sample period (s); drift_time: (S,) how far theta drifts per sample (s): h, or 0 where the
+            parameter holds over the step (it moves between steps instead).
+        systems: (S,) rows of z, P, log_likelihood that ``measured`` etc. (S, ...) belong to.
+        measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
+        z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
+    """
+    n_hyp = coefficients.shape[0]
+    nx = measured.shape[1]
+    n = nx + 2
+    cols = coefficients.shape[3]
+    samples = measured.shape[2]
+    W, Y = step_inputs(load, load_rate, measured, h, cols - nx)
+    # the filters as (system, hypothesis), those with a fixed parameter last
+    listed = np.empty((systems.shape[0] * n_hyp, 2), dtype=np.int64)
+    n_full = 0
+    n_fixed = 0
+    for s in range(systems.shape[0]):
+        for f in range(n_hyp):
+            if parameter_fixed(terms[f], q[f], own[f], lo[f], hi[f], z[systems[s], f], P[systems[s], f]):
+                n_fixed += 1
+                listed[-n_fixed, 0], listed[-n_fixed, 1] = s, f
+            else:
+                listed[n_full, 0], listed[n_full, 1] = s, f
+                n_full += 1
+    # the block's copies, lanes last
+    B = LANES
+    Z, PP, Q, T = np.empty((n, B)), np.empty((n, n, B)), np.empty((n, B)), np.empty((n, n, B))
+    M0, dM, M = np.empty((nx, cols, B)), np.empty((nx, cols, B)), np.empty((nx, cols, B))
+    G, R, bounds, anchor, ht = np.empty((nx, B)), np.empty((nx, B)), np.empty((2, B)), np.empty(B), np.empty(B)
+    own_lane, lane_system = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
+    value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[1]))
+    Wb, Yb, F, work = np.empty((cols - nx, B)), np.empty((nx, B)), np.empty((2, nx, B)), np.empty((n + 5, B))
+    density = np.empty((samples, B))
+    for first in list(range(0, n_full, B)) + list(range(n_full, listed.shape[0], B)):
+        fixed = first >= n_full
+        lanes = min(B, (listed.shape[0] if fixed else n_full) - first)
+        m = nx if fixed else n  # the rows that move
+        for b in range(lanes):
+            s, f = listed[first + b]
+            row = systems[s]
+            Z[:, b] = z[row, f]
+            PP[:, :, b] = P[row, f]
+            # the interpolant at the step's first theta, carried to each sample's theta by its slope:
+            # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
+            anchor[b] = z[row, f, nx]
+            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], anchor[b], value, slope, basis)
+            M0[:, :, b] = value
+            dM[:, :, b] = slope
+            G[:, b] = gain[f]
+            R[:, b] = variance[s]
+            own_lane[b] = own[f]
+            bounds[0, b], bounds[1, b] = lo[f], hi[f]
+            ht[b] = drift_time[s]
+            Q[:nx, b] = 0.0
+            Q[nx, b], Q[nx + 1, b] = q[f, 0], q[f, 1]
+            lane_system[b] = s
+        if fixed:
+            # what the full filter's arithmetic gives where dM and theta's rows are +0 and theta stays at the anchor
+            F[0] = 0.0
+            T[:, nx:] = 0.0
+            for i in range(nx):
+                for j in range(cols):
+                    for b in range(lanes):
+                        M[i, j, b] = M0[i, j, b] + 0.0
+        for k in range(1, samples):
+            for b in range(lanes):
+                for j in range(cols - nx):
+                    Wb[j, b] = W[k, j, lane_system[b]]
+                for i in range(nx):
+                    Yb[i, b] = Y[k, i, lane_system[b]]
+            if state_noise > 0.0:
+                for i in range(nx):
+                    for b in range(lanes):
+                        g = 1.0 / Z[nx, b] if i == own_lane[b] else G[i, b]
+                        Q[i, b] = state_noise * R[i, b] / (g * g)
+            if not fixed:
+                for b in range(lanes):
+                    work[0, b] = Z[nx, b] - anchor[b]
+                for i in range(nx):
+                    for j in range(cols):
+                        for b in range(lanes):
+                            M[i, j, b] = M0[i, j, b] + dM[i, j, b] * work[0, b]
+            predict(Z, PP, M, dM, Wb, ht, Q, F, T, m, lanes)
+            correct(Z, PP, Yb, R, G, own_lane, work, m, lanes)
+            for b in range(lanes):
+                # theta stays where the model is defined (and positive, for a gain 1 / theta)
+                Z[nx, b] = min(bounds[1, b], max(bounds[0, b], Z[nx, b]))
+                density[k, b] = work[n + 4, b]
+        for b in range(lanes):
+            s, f = listed[first + b]
+            row = systems[s]
+            z[row, f] = Z[:, b]
+            P[row, f] = PP[:, :, b]
+            likelihood = log_likelihood[row, f]
+            for k in range(1, samples):
+                likelihood = forget * likelihood + density[k, b]
+            log_likelihood[row, f] = likelihood
 
 
 @numba.njit(cache=True)
 def predict(
     Z: np.ndarray, P: np.ndarray, M: np.ndarray, dM: np.ndarray, W: np.ndarray, ht: np.ndarray, Q: np.ndarray,
-    F: np.ndarray, T: np.ndarray, lanes: int,
+    F: np.ndarray, T: np.ndarray, m: int, lanes: int,
 ) -> None:
     """Time update of a block of filters over one interval, in place; every array has a last, lane axis.
 
     Z: (n, B) states [x, theta, drift]; P: (n, n, B); M = [Phi | Gamma] (nx, nx + 4 or nx + 5, B), dM its
     theta-slope; W: (4 or 5, B) the load's coefficients (then 1 for the constant sources' column); ht: (B,) the drift's time per sample (s: h, or 0
-    where the parameter holds over the step); Q: (n, B) process-noise variances. F: (nx, 2, B)
+    where the parameter holds over the step); Q: (n, B) process-noise variances. F: (2, nx, B)
     workspace (the Jacobian's theta column, the new states); T: (n, n, B) workspace. The Jacobian's
-    other entries are Phi and the known rows theta' = theta + h drift, drift' = drift.
+    other entries are Phi and the known rows theta' = theta + h drift, drift' = drift. Only the first
+    m = n or nx rows move (nx: a fixed parameter's filter, F[0] and T's last two columns +0).
+
+    P = J P J^T + diag(Q) as T = J P, then J T^T (P symmetric: T^T = P J^T).
     """
     n = Z.shape[0]
     nx = n - 2
     for i in range(nx):
         for b in range(lanes):
-            F[i, 0, b] = 0.0
-            F[i, 1, b] = 0.0
+            F[1, i, b] = 0.0
         for j in range(nx):
             for b in range(lanes):
-                F[i, 1, b] += M[i, j, b] * Z[j, b]
-                F[i, 0, b] += dM[i, j, b] * Z[j, b]
+                F[1, i, b] += M[i, j, b] * Z[j, b]
         for j in range(W.shape[0]):
             for b in range(lanes):
-                F[i, 1, b] += M[i, nx + j, b] * W[j, b]
-                F[i, 0, b] += dM[i, nx + j, b] * W[j, b]
-    for b in range(lanes):
-        for i in range(nx):
-            Z[i, b] = F[i, 1, b]
-        Z[nx, b] += ht[b] * Z[nx + 1, b]
-    propagate_covariance(P, M, F, ht, Q, T, lanes)
-
-
-@numba.njit(cache=True)
-def propagate_covariance(P: np.ndarray, M: np.ndarray, F: np.ndarray, ht: np.ndarray, Q: np.ndarray, T: np.ndarray, lanes: int) -> None:
-    """P = J P J^T + diag(Q) for the Jacobian J of ``predict`` (Phi and theta column F[:, 0] in the state rows)."""
-    jacobian_times(P, M, F, ht, T, lanes)  # T = J P, symmetric P: T^T = P J^T
-    jacobian_times(T.transpose((1, 0, 2)), M, F, ht, P, lanes)  # P = J T^T = J P J^T
-    n = P.shape[0]
-    for i in range(n):
+                F[1, i, b] += M[i, nx + j, b] * W[j, b]
+        if m == n:
+            for b in range(lanes):
+                F[0, i, b] = 0.0
+            for j in range(nx):
+                for b in range(lanes):
+                    F[0, i, b] += dM[i, j, b] * Z[j, b]
+            for j in range(W.shape[0]):
+                for b in range(lanes):
+                    F[0, i, b] += dM[i, nx + j, b] * W[j, b]
+    for i in range(nx):
+        for b in range(lanes):
+            Z[i, b] = F[1, i, b]
+    if m == n:
+        for b in range(lanes):
+            Z[nx, b] += ht[b] * Z[nx + 1, b]
+    for i in range(nx):
+        for j in range(m):
+            for b in range(lanes):
+                T[i, j, b] = F[0, i, b] * P[nx, j, b]
+            for k in range(nx):
+                for b in range(lanes):
+                    T[i, j, b] += M[i, k, b] * P[k, j, b]
+    if m == n:
+        for j in range(n):
+            for b in range(lanes):
+                T[nx, j, b] = P[nx, j, b] + ht[b] * P[nx + 1, j, b]
+                T[nx + 1, j, b] = P[nx + 1, j, b]
+    for i in range(nx):
+        for j in range(m):
+            for b in range(lanes):
+                P[i, j, b] = F[0, i, b] * T[j, nx, b]
+            for k in range(nx):
+                for b in range(lanes):
+                    P[i, j, b] += M[i, k, b] * T[j, k, b]
+    if m == n:
+        for j in range(n):
+            for b in range(lanes):
+                P[nx, j, b] = T[j, nx, b] + ht[b] * T[j, nx + 1, b]
+                P[nx + 1, j, b] = T[j, nx + 1, b]
+    for i in range(m):
         for b in range(lanes):
             P[i, i, b] += Q[i, b]
 
 
 @numba.njit(cache=True)
-def jacobian_times(X: np.ndarray, M: np.ndarray, F: np.ndarray, ht: np.ndarray, out: np.ndarray, lanes: int) -> None:
-    """out = J X for every lane, J as in ``propagate_covariance``; X, out: (n, n, B)."""
-    n = X.shape[0]
-    nx = n - 2
-    for i in range(n):
-        for j in range(n):
-            if i < nx:
-                for b in range(lanes):
-                    out[i, j, b] = F[i, 0, b] * X[nx, j, b]
-                for k in range(nx):
-                    for b in range(lanes):
-                        out[i, j, b] += M[i, k, b] * X[k, j, b]
-            else:
-                for b in range(lanes):
-                    out[i, j, b] = X[nx, j, b] + ht[b] * X[nx + 1, j, b] if i == nx else X[nx + 1, j, b]
-
-
-@numba.njit(cache=True)
-def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np.ndarray, own: np.ndarray, work: np.ndarray, lanes: int) -> None:
+def correct(
+    Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np.ndarray, own: np.ndarray, work: np.ndarray, m: int, lanes: int
+) -> None:
     """Measurement update of a block of filters from y = g x + noise of variances R (nx, B); the
-    innovations' log-densities go to work[n + 4] (B,).
+    innovations' log-densities go to work[n + 4] (B,). Only the first m rows move (as in ``predict``).
 
     The noise is independent across channels, so the channels update in turn, each a scalar update
     linearised at the state the previous ones left (exact where y is linear in the state; for the
@@ -150,129 +325,10 @@ def correct(Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np
             work[S, b] = 1.0 / variance  # kept as its inverse: one division, then products
             work[V, b] *= work[S, b]  # the innovation over its variance
             work[L, b] -= 0.5 * (math.log(variance) + LOG_2PI + work[V, b] * work[V, b] * variance)
-        for a in range(n):
+        for a in range(m):
             for b in range(lanes):
                 Z[a, b] += work[a, b] * work[V, b]
             for c in range(a + 1):
                 for b in range(lanes):
                     P[a, c, b] -= work[a, b] * work[S, b] * work[c, b]
                     P[c, a, b] = P[a, c, b]
-
-
-@numba.njit(cache=True)
-def hermite_row(u0: float, u1: float, d0: float, d1: float, h: float, w: np.ndarray) -> None:
-    """The input's Taylor coefficients (value, first to third derivative) over one interval, as the plant's integrator forms them."""
-    slope = (u1 - u0) / h
-    c2 = (3.0 * slope - 2.0 * d0 - d1) / h
-    c3 = (d0 + d1 - 2.0 * slope) / (h * h)
-    w[0] = u0
-    w[1] = d0
-    w[2] = 2.0 * c2
-    w[3] = 6.0 * c3
-
-
-@numba.njit(cache=True)
-def track(
-    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
-    state_noise: float, forget: float, h: float, drift_time: np.ndarray,
-    systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
-    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
-) -> None:
-    """Run every hypothesis's filter of the listed systems over samples 1..L of their step (in place).
-
-    The S x H filters run LANES at a time, filter (s, f) in lane s H + f of the list.
-
-    Args:
-        coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis;
-            terms (H,): how many are used.
-        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``correct``.
-        q: (H, 2) process-noise variances per sample of theta and drift.
-        state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
-        forget: factor on the log-likelihoods per sample.
-        h: sample period (s); drift_time: (S,) how far theta drifts per sample (s): h, or 0 where the
-            parameter holds over the step (it moves between steps instead).
-        systems: (S,) rows of z, P, log_likelihood that ``measured`` etc. (S, ...) belong to.
-        measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
-        z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
-    """
-    n_filters = systems.shape[0] * coefficients.shape[0]
-    B = max(1, min(LANES, n_filters))
-    nx = measured.shape[1]
-    n = nx + 2
-    cols = coefficients.shape[3]
-    # the block's copies, lanes last
-    Z, PP, Q = np.empty((n, B)), np.empty((n, n, B)), np.zeros((n, B))
-    M0, dM = np.empty((nx, cols, B)), np.empty((nx, cols, B))
-    G, R, bounds, anchor, own_lane = np.empty((nx, B)), np.empty((nx, B)), np.empty((2, B)), np.empty(B), np.empty(B, dtype=np.int64)
-    ht = np.empty(B)
-    value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[1]))
-    for first in range(0, n_filters, B):
-        lanes = min(B, n_filters - first)
-        for b in range(lanes):
-            s, f = divmod(first + b, coefficients.shape[0])
-            row = systems[s]
-            Z[:, b] = z[row, f]
-            PP[:, :, b] = P[row, f]
-            # the interpolant at the step's first theta, carried to each sample's theta by its slope:
-            # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
-            anchor[b] = z[row, f, nx]
-            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], anchor[b], value, slope, basis)
-            M0[:, :, b] = value
-            dM[:, :, b] = slope
-            G[:, b] = gain[f]
-            R[:, b] = variance[s]
-            own_lane[b] = own[f]
-            bounds[0, b], bounds[1, b] = lo[f], hi[f]
-            ht[b] = drift_time[s]
-            Q[nx, b], Q[nx + 1, b] = q[f, 0], q[f, 1]
-        density = track_block(
-            Z, PP, Q, M0, dM, anchor, G, own_lane, R, bounds, state_noise, h, ht, first, coefficients.shape[0], measured, load, load_rate, lanes
-        )
-        for b in range(lanes):
-            s, f = divmod(first + b, coefficients.shape[0])
-            row = systems[s]
-            z[row, f] = Z[:, b]
-            P[row, f] = PP[:, :, b]
-            likelihood = log_likelihood[row, f]
-            for k in range(1, measured.shape[2]):
-                likelihood = forget * likelihood + density[k, b]
-            log_likelihood[row, f] = likelihood
-
-
-@numba.njit(cache=True)
-def track_block(
-    Z: np.ndarray, P: np.ndarray, Q: np.ndarray, M0: np.ndarray, dM: np.ndarray, anchor: np.ndarray, G: np.ndarray, own: np.ndarray,
-    R: np.ndarray, bounds: np.ndarray, state_noise: float, h: float, ht: np.ndarray, first: int, n_hyp: int,
-    measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, lanes: int,
-) -> np.ndarray:
-    """A block of filters (lanes last; lane b is filter first + b of ``track``'s list) over the step, in place.
-
-    Returns each sample's innovation log-density per lane, (L + 1, B) (row 0 unused).
-    """
-    n, B = Z.shape
-    nx = n - 2
-    cols = M0.shape[1]
-    # the load's four Taylor coefficients, then 1 for the constant sources' column where there is one
-    M, W, Y = np.empty((nx, cols, B)), np.ones((cols - nx, B)), np.empty((nx, B))
-    F, T, work = np.empty((nx, 2, B)), np.empty((n, n, B)), np.empty((n + 5, B))
-    density = np.zeros((measured.shape[2], B))
-    for k in range(1, measured.shape[2]):
-        for b in range(lanes):
-            s = (first + b) // n_hyp
-            hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h, W[:, b])
-            for i in range(nx):
-                Y[i, b] = measured[s, i, k]
-                if state_noise > 0.0:
-                    g = 1.0 / Z[nx, b] if i == own[b] else G[i, b]
-                    Q[i, b] = state_noise * R[i, b] / (g * g)
-        for i in range(nx):
-            for j in range(cols):
-                for b in range(lanes):
-                    M[i, j, b] = M0[i, j, b] + dM[i, j, b] * (Z[nx, b] - anchor[b])
-        predict(Z, P, M, dM, W, ht, Q, F, T, lanes)
-        correct(Z, P, Y, R, G, own, work, lanes)
-        for b in range(lanes):
-            # theta stays where the model is defined (and positive, for a gain 1 / theta)
-            Z[nx, b] = min(bounds[1, b], max(bounds[0, b], Z[nx, b]))
-            density[k, b] = work[n + 4, b]
-    return density
