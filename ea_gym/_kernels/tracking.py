@@ -52,8 +52,9 @@ def chebyshev_matrices(
             slope[i, j] = d * scale
 
 
-#: Filters run side by side, LANES to a block: their loops (lanes innermost) fill the SIMD lanes.
-LANES = 32
+#: Filters run side by side, LANES to a block: each sample's arithmetic is one loop over the lanes,
+#: which fills the SIMD lanes.
+LANES = 16
 
 
 @numba.njit(cache=True)
@@ -66,22 +67,6 @@ def hermite_row(u0: float, u1: float, d0: float, d1: float, h: float) -> tuple[f
 
 
 @numba.njit(cache=True)
-def step_inputs(load: np.ndarray, load_rate: np.ndarray, measured: np.ndarray, h: float, width: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per sample k and system s, the input's coefficients W (L + 1, width, S) (``hermite_row``'s four over
-    interval k, then 1 for the constant sources' column where there is one) and the measurements Y
-    (L + 1, nx, S): what each of a system's filters reads, systems last."""
-    S, nx, samples = measured.shape
-    W = np.ones((samples, width, S))
-    Y = np.empty((samples, nx, S))
-    for s in range(S):
-        for k in range(1, samples):
-            W[k, 0, s], W[k, 1, s], W[k, 2, s], W[k, 3, s] = hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h)
-            for i in range(nx):
-                Y[k, i, s] = measured[s, i, k]
-    return W, Y
-
-
-@numba.njit(cache=True)
 def positive_zero(v: float) -> bool:
     """v is +0.0."""
     return v == 0.0 and math.copysign(1.0, v) > 0.0
@@ -91,8 +76,9 @@ def positive_zero(v: float) -> bool:
 def parameter_fixed(terms: int, q: np.ndarray, own: int, lo: float, hi: float, z: np.ndarray, P: np.ndarray) -> bool:
     """Whether a filter's parameter cannot move over the step: an interpolant of one term (no slope), no
     process noise on it, a measurement that does not read it, theta nonzero and in range, and a drift
-    and covariance rows and columns of theta and drift all +0. Its theta, drift and their rows then stay
-    as they are, and ``track_block`` may run it over its states alone: the same bits."""
+    and covariance rows and columns of theta and drift all +0. The filter's arithmetic then leaves its
+    theta, drift and their rows as they are, and its states' is that of a filter over the states alone,
+    bit for bit: ``filter_samples`` runs it so."""
     nx = z.shape[0] - 2
     if terms != 1 or q[0] != 0.0 or q[1] != 0.0 or own >= 0 or z[nx] == 0.0 or not lo <= z[nx] <= hi or not positive_zero(z[nx + 1]):
         return False
@@ -103,7 +89,6 @@ def parameter_fixed(terms: int, q: np.ndarray, own: int, lo: float, hi: float, z
     return True
 
 
-@numba.njit(cache=True)
 def track(
     coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
     state_noise: float, forget: float, h: float, drift_time: np.ndarray,
@@ -112,13 +97,13 @@ def track(
 ) -> None:
     """Run every hypothesis's filter of the listed systems over samples 1..L of their step (in place).
 
-    The S x H filters run LANES at a time; those whose parameter is fixed (``parameter_fixed``: the
-    "none" hypothesis's) in blocks of their own, over their states alone.
+    The S x H filters run LANES at a time (``filter_samples``); those whose parameter is fixed
+    (``parameter_fixed``: the "none" hypothesis's) in blocks of their own, over their states alone.
 
     Args:
         coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis;
             terms (H,): how many are used.
-        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``correct``.
+        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``filter_samples``.
         q: (H, 2) process-noise variances per sample of theta and drift.
         state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
         forget: factor on the log-likelihoods per sample.
@@ -128,16 +113,38 @@ def track(
         measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
         z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
     """
-    n_hyp = coefficients.shape[0]
     nx = measured.shape[1]
+    # the sizes as tuple lengths, which the compiled code sees as constants: its loops over them unroll
+    states, inputs = (0.0,) * nx, (0.0,) * (coefficients.shape[3] - nx)
+    track_filters(
+        coefficients, terms, lo, hi, gain, own, q, state_noise, forget, h, drift_time, systems, measured, load, load_rate, variance,
+        z, P, log_likelihood, states, inputs,
+    )
+
+
+@numba.njit(cache=True)
+def track_filters(
+    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
+    state_noise: float, forget: float, h: float, drift_time: np.ndarray,
+    systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
+    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray, states: tuple[float, ...], inputs: tuple[float, ...],
+) -> None:
+    """``track``, nx = len(states) and the input's coefficients per sample len(inputs)."""
+    n_hyp = coefficients.shape[0]
+    nx, nw = len(states), len(inputs)
     n = nx + 2
-    cols = coefficients.shape[3]
     samples = measured.shape[2]
-    W, Y = step_inputs(load, load_rate, measured, h, cols - nx)
+    # what each of a system's filters reads at sample k: the input's coefficients (``hermite_row``'s
+    # four over interval k, then 1 for the constant sources' column where there is one) and the measurements
+    W, Y = np.ones((samples, nw, systems.shape[0])), np.empty((samples, nx, systems.shape[0]))
+    for s in range(systems.shape[0]):
+        for k in range(1, samples):
+            W[k, 0, s], W[k, 1, s], W[k, 2, s], W[k, 3, s] = hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h)
+            for i in range(nx):
+                Y[k, i, s] = measured[s, i, k]
     # the filters as (system, hypothesis), those with a fixed parameter last
     listed = np.empty((systems.shape[0] * n_hyp, 2), dtype=np.int64)
-    n_full = 0
-    n_fixed = 0
+    n_full, n_fixed = 0, 0
     for s in range(systems.shape[0]):
         for f in range(n_hyp):
             if parameter_fixed(terms[f], q[f], own[f], lo[f], hi[f], z[systems[s], f], P[systems[s], f]):
@@ -146,75 +153,31 @@ def track(
             else:
                 listed[n_full, 0], listed[n_full, 1] = s, f
                 n_full += 1
-    # the block's copies, lanes last
-    B = LANES
-    Z, PP, Q, T = np.empty((n, B)), np.empty((n, n, B)), np.empty((n, B)), np.empty((n, n, B))
-    M0, dM, M = np.empty((nx, cols, B)), np.empty((nx, cols, B)), np.empty((nx, cols, B))
-    G, R, bounds, anchor, ht = np.empty((nx, B)), np.empty((nx, B)), np.empty((2, B)), np.empty(B), np.empty(B)
-    own_lane, lane_system = np.empty(B, dtype=np.int64), np.empty(B, dtype=np.int64)
-    value, slope, basis = np.empty((nx, cols)), np.empty((nx, cols)), np.empty((2, coefficients.shape[1]))
-    Wb, Yb, F, work = np.empty((cols - nx, B)), np.empty((nx, B)), np.empty((2, nx, B)), np.empty((n + 5, B))
-    density = np.empty((samples, B))
-    for first in list(range(0, n_full, B)) + list(range(n_full, listed.shape[0], B)):
+    block = np.empty(layout(nx, nw)[-1] * LANES)
+    value, slope, basis = np.empty((nx, nx + nw)), np.empty((nx, nx + nw)), np.empty((2, coefficients.shape[1]))
+    lane_system = np.empty(LANES, dtype=np.int64)
+    density = np.empty((samples, LANES))
+    for first in list(range(0, n_full, LANES)) + list(range(n_full, listed.shape[0], LANES)):
         fixed = first >= n_full
-        lanes = min(B, (listed.shape[0] if fixed else n_full) - first)
-        m = nx if fixed else n  # the rows that move
+        lanes = min(LANES, (listed.shape[0] if fixed else n_full) - first)
         for b in range(lanes):
             s, f = listed[first + b]
-            row = systems[s]
-            Z[:, b] = z[row, f]
-            PP[:, :, b] = P[row, f]
+            lane_system[b] = s
             # the interpolant at the step's first theta, carried to each sample's theta by its slope:
             # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
-            anchor[b] = z[row, f, nx]
-            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], anchor[b], value, slope, basis)
-            M0[:, :, b] = value
-            dM[:, :, b] = slope
-            G[:, b] = gain[f]
-            R[:, b] = variance[s]
-            own_lane[b] = own[f]
-            bounds[0, b], bounds[1, b] = lo[f], hi[f]
-            ht[b] = drift_time[s]
-            Q[:nx, b] = 0.0
-            Q[nx, b], Q[nx + 1, b] = q[f, 0], q[f, 1]
-            lane_system[b] = s
+            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], z[systems[s], f, nx], value, slope, basis)
+            load_lane(block, b, z[systems[s], f], P[systems[s], f], value, slope, gain[f], variance[s], q[f], drift_time[s], lo[f], hi[f], own[f], nw)
         if fixed:
-            # what the full filter's arithmetic gives where dM and theta's rows are +0 and theta stays at the anchor
-            F[0] = 0.0
-            T[:, nx:] = 0.0
-            for i in range(nx):
-                for j in range(cols):
-                    for b in range(lanes):
-                        M[i, j, b] = M0[i, j, b] + 0.0
-        for k in range(1, samples):
-            for b in range(lanes):
-                for j in range(cols - nx):
-                    Wb[j, b] = W[k, j, lane_system[b]]
-                for i in range(nx):
-                    Yb[i, b] = Y[k, i, lane_system[b]]
-            if state_noise > 0.0:
-                for i in range(nx):
-                    for b in range(lanes):
-                        g = 1.0 / Z[nx, b] if i == own_lane[b] else G[i, b]
-                        Q[i, b] = state_noise * R[i, b] / (g * g)
-            if not fixed:
-                for b in range(lanes):
-                    work[0, b] = Z[nx, b] - anchor[b]
-                for i in range(nx):
-                    for j in range(cols):
-                        for b in range(lanes):
-                            M[i, j, b] = M0[i, j, b] + dM[i, j, b] * work[0, b]
-            predict(Z, PP, M, dM, Wb, ht, Q, F, T, m, lanes)
-            correct(Z, PP, Yb, R, G, own_lane, work, m, lanes)
-            for b in range(lanes):
-                # theta stays where the model is defined (and positive, for a gain 1 / theta)
-                Z[nx, b] = min(bounds[1, b], max(bounds[0, b], Z[nx, b]))
-                density[k, b] = work[n + 4, b]
+            filter_samples(block, lanes, lane_system, W, Y, state_noise, density, states, states, inputs)
+        else:
+            filter_samples(block, lanes, lane_system, W, Y, state_noise, density, states, states + (0.0, 0.0), inputs)
         for b in range(lanes):
             s, f = listed[first + b]
             row = systems[s]
-            z[row, f] = Z[:, b]
-            P[row, f] = PP[:, :, b]
+            for a in range(n):
+                z[row, f, a] = block[at(a, b)]
+                for c in range(n):
+                    P[row, f, a, c] = block[at(n + a * n + c, b)]
             likelihood = log_likelihood[row, f]
             for k in range(1, samples):
                 likelihood = forget * likelihood + density[k, b]
@@ -222,113 +185,212 @@ def track(
 
 
 @numba.njit(cache=True)
-def predict(
-    Z: np.ndarray, P: np.ndarray, M: np.ndarray, dM: np.ndarray, W: np.ndarray, ht: np.ndarray, Q: np.ndarray,
-    F: np.ndarray, T: np.ndarray, m: int, lanes: int,
-) -> None:
-    """Time update of a block of filters over one interval, in place; every array has a last, lane axis.
+def layout(nx: int, nw: int) -> tuple[int, ...]:
+    """Where each quantity's rows start in a block of filters (each row LANES wide, one lane per filter):
+    Z (n), P (n x n), T (n x n), M0, dM, M (nx x (nx + nw) each), F0, F1 (nx), W (nw), Y (nx), gain
+    (nx), R (nx), Q (n), ht, anchor, lo, hi, own, each channel's innovation variance (nx) and
+    normalised innovation (nx), P h (n); and the rows in all."""
+    n, cols = nx + 2, nx + nw
+    Z = 0
+    P = Z + n
+    T = P + n * n
+    M0 = T + n * n
+    DM = M0 + nx * cols
+    M = DM + nx * cols
+    F0 = M + nx * cols
+    F1 = F0 + nx
+    W = F1 + nx
+    Y = W + nw
+    G = Y + nx
+    R = G + nx
+    Q = R + nx
+    HT = Q + n
+    ANCHOR = HT + 1
+    LO = ANCHOR + 1
+    HI = LO + 1
+    OWN = HI + 1
+    VAR = OWN + 1
+    VN = VAR + nx
+    PH = VN + nx
+    return Z, P, T, M0, DM, M, F0, F1, W, Y, G, R, Q, HT, ANCHOR, LO, HI, OWN, VAR, VN, PH, PH + n
 
-    Z: (n, B) states [x, theta, drift]; P: (n, n, B); M = [Phi | Gamma] (nx, nx + 4 or nx + 5, B), dM its
-    theta-slope; W: (4 or 5, B) the load's coefficients (then 1 for the constant sources' column); ht: (B,) the drift's time per sample (s: h, or 0
-    where the parameter holds over the step); Q: (n, B) process-noise variances. F: (2, nx, B)
-    workspace (the Jacobian's theta column, the new states); T: (n, n, B) workspace. The Jacobian's
-    other entries are Phi and the known rows theta' = theta + h drift, drift' = drift. Only the first
-    m = n or nx rows move (nx: a fixed parameter's filter, F[0] and T's last two columns +0).
 
-    P = J P J^T + diag(Q) as T = J P, then J T^T (P symmetric: T^T = P J^T).
-    """
-    n = Z.shape[0]
-    nx = n - 2
-    for i in range(nx):
-        for b in range(lanes):
-            F[1, i, b] = 0.0
-        for j in range(nx):
-            for b in range(lanes):
-                F[1, i, b] += M[i, j, b] * Z[j, b]
-        for j in range(W.shape[0]):
-            for b in range(lanes):
-                F[1, i, b] += M[i, nx + j, b] * W[j, b]
-        if m == n:
-            for b in range(lanes):
-                F[0, i, b] = 0.0
-            for j in range(nx):
-                for b in range(lanes):
-                    F[0, i, b] += dM[i, j, b] * Z[j, b]
-            for j in range(W.shape[0]):
-                for b in range(lanes):
-                    F[0, i, b] += dM[i, nx + j, b] * W[j, b]
-    for i in range(nx):
-        for b in range(lanes):
-            Z[i, b] = F[1, i, b]
-    if m == n:
-        for b in range(lanes):
-            Z[nx, b] += ht[b] * Z[nx + 1, b]
-    for i in range(nx):
-        for j in range(m):
-            for b in range(lanes):
-                T[i, j, b] = F[0, i, b] * P[nx, j, b]
-            for k in range(nx):
-                for b in range(lanes):
-                    T[i, j, b] += M[i, k, b] * P[k, j, b]
-    if m == n:
-        for j in range(n):
-            for b in range(lanes):
-                T[nx, j, b] = P[nx, j, b] + ht[b] * P[nx + 1, j, b]
-                T[nx + 1, j, b] = P[nx + 1, j, b]
-    for i in range(nx):
-        for j in range(m):
-            for b in range(lanes):
-                P[i, j, b] = F[0, i, b] * T[j, nx, b]
-            for k in range(nx):
-                for b in range(lanes):
-                    P[i, j, b] += M[i, k, b] * T[j, k, b]
-    if m == n:
-        for j in range(n):
-            for b in range(lanes):
-                P[nx, j, b] = T[j, nx, b] + ht[b] * T[j, nx + 1, b]
-                P[nx + 1, j, b] = T[j, nx + 1, b]
-    for i in range(m):
-        for b in range(lanes):
-            P[i, i, b] += Q[i, b]
+@numba.njit(cache=True, inline="always")
+def at(row: int, b: int) -> np.uint64:
+    """Where lane b of a block's row is, unsigned: that spares the index its check for a negative
+    value, a branch that keeps the lanes' loop from vectorizing."""
+    return numba.uint64(row * LANES + b)
 
 
 @numba.njit(cache=True)
-def correct(
-    Z: np.ndarray, P: np.ndarray, Y: np.ndarray, R: np.ndarray, gain: np.ndarray, own: np.ndarray, work: np.ndarray, m: int, lanes: int
+def load_lane(
+    block: np.ndarray, b: int, z: np.ndarray, P: np.ndarray, value: np.ndarray, slope: np.ndarray, gain: np.ndarray, variance: np.ndarray,
+    q: np.ndarray, ht: float, lo: float, hi: float, own: int, nw: int,
 ) -> None:
-    """Measurement update of a block of filters from y = g x + noise of variances R (nx, B); the
-    innovations' log-densities go to work[n + 4] (B,). Only the first m rows move (as in ``predict``).
-
-    The noise is independent across channels, so the channels update in turn, each a scalar update
-    linearised at the state the previous ones left (exact where y is linear in the state; for the
-    momentum read through 1 / theta, one relinearisation on the way): no matrix inverse, and the
-    log-density is the sum of the channels' conditional ones. gain: (nx, B) at nominal; own: (B,) the
-    state whose gain is 1 / theta instead (-1: none). ``work``: (n + 5, B) scratch: P h, then g, d y / d theta, the innovation,
-    the inverse of its variance and the log-density.
-    """
-    n = Z.shape[0]
+    """Lane b of a block: a filter's state z and covariance P, its transition at the anchor (value, its
+    theta-slope slope) and its settings."""
+    n = z.shape[0]
     nx = n - 2
-    G, D, V, S, L = n, n + 1, n + 2, n + 3, n + 4  # rows of work
-    for b in range(lanes):
-        work[L, b] = 0.0
+    cols = nx + nw
+    Z, PP, _, M0, DM, M, _, _, _, _, G, R, Q, HT, ANCHOR, LO, HI, OWN, _, _, _, _ = layout(nx, nw)
+    for a in range(n):
+        block[at(Z + a, b)] = z[a]
+        for c in range(n):
+            block[at(PP + a * n + c, b)] = P[a, c]
     for i in range(nx):
+        for j in range(cols):
+            block[at(M0 + i * cols + j, b)] = value[i, j]
+            block[at(DM + i * cols + j, b)] = slope[i, j]
+            # a fixed parameter's filter keeps the M the full arithmetic gives it: M0 + dM (theta - anchor) = M0 + (+0)
+            block[at(M + i * cols + j, b)] = value[i, j] + 0.0
+        block[at(G + i, b)] = gain[i]
+        block[at(R + i, b)] = variance[i]
+        block[at(Q + i, b)] = 0.0
+    block[at(Q + nx, b)], block[at(Q + nx + 1, b)] = q[0], q[1]
+    block[at(HT, b)], block[at(ANCHOR, b)], block[at(LO, b)], block[at(HI, b)], block[at(OWN, b)] = ht, z[nx], lo, hi, float(own)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def filter_samples(
+    block: np.ndarray, lanes: int, lane_system: np.ndarray, W: np.ndarray, Y: np.ndarray, state_noise: float, density: np.ndarray,
+    states: tuple[float, ...], moving: tuple[float, ...], inputs: tuple[float, ...],
+) -> None:
+    """A block of filters (rows as ``layout`` says; lane b a filter of system lane_system[b]) over
+    samples 1..L of W (L + 1, nw, S) and Y (L + 1, nx, S), in place; each sample's innovation
+    log-density per lane to density[k, b].
+
+    A filter's state is z = [x (nx = len(states)), theta, drift]; only the first m = len(moving) rows
+    move: n, or nx for a fixed parameter's filter (``parameter_fixed``), on whose other rows the
+    arithmetic is the identity. The sizes come as tuple lengths, constants to the compiler: every loop
+    but the lanes' unrolls, and the lanes' loop, whose accesses are all to ``block`` at whole rows'
+    distance, vectorizes.
+    """
+    nx, nw = len(states), len(inputs)
+    _, _, _, _, _, _, _, _, WW, YY, _, _, _, _, _, _, _, _, VAR, VN, _, _ = layout(nx, nw)
+    for k in range(1, W.shape[0]):
         for b in range(lanes):
-            g = 1.0 / Z[nx, b] if i == own[b] else gain[i, b]
-            work[G, b] = g
-            work[D, b] = -Z[i, b] * g * g if i == own[b] else 0.0
-            work[V, b] = Y[i, b] - g * Z[i, b]
-        for a in range(n):
-            for b in range(lanes):
-                work[a, b] = work[G, b] * P[a, i, b] + work[D, b] * P[a, nx, b]
-        for b in range(lanes):
-            variance = work[G, b] * work[i, b] + work[D, b] * work[nx, b] + R[i, b]
-            work[S, b] = 1.0 / variance  # kept as its inverse: one division, then products
-            work[V, b] *= work[S, b]  # the innovation over its variance
-            work[L, b] -= 0.5 * (math.log(variance) + LOG_2PI + work[V, b] * work[V, b] * variance)
-        for a in range(m):
-            for b in range(lanes):
-                Z[a, b] += work[a, b] * work[V, b]
-            for c in range(a + 1):
-                for b in range(lanes):
-                    P[a, c, b] -= work[a, b] * work[S, b] * work[c, b]
-                    P[c, a, b] = P[a, c, b]
+            s = lane_system[b]
+            for j in range(nw):
+                block[at(WW + j, b)] = W[k, j, s]
+            for i in range(nx):
+                block[at(YY + i, b)] = Y[k, i, s]
+        predict_states(block, lanes, state_noise, states, moving, inputs)
+        propagate_covariance(block, lanes, states, moving, inputs)
+        measurement_update(block, lanes, states, moving, inputs)
+        for b in range(lanes):  # the log-densities apart: the logarithm is no vector instruction here
+            log_density = 0.0
+            for i in range(nx):
+                variance, v = block[at(VAR + i, b)], block[at(VN + i, b)]
+                log_density -= 0.5 * (math.log(variance) + LOG_2PI + v * v * variance)
+            density[k, b] = log_density
+
+
+@numba.njit(cache=True, error_model="numpy")
+def predict_states(
+    block: np.ndarray, lanes: int, state_noise: float, states: tuple[float, ...], moving: tuple[float, ...], inputs: tuple[float, ...]
+) -> None:
+    """The block's states over one interval: x' = M [x; w] with M = M0 + dM (theta - anchor) ([Phi |
+    Gamma] interpolated, dM its theta-slope), theta' = theta + ht drift, drift' = drift; the Jacobian's
+    theta column F0 = dM [x; w], and the states' process noise Q: state_noise x R / g^2 (g as in
+    ``measurement_update``)."""
+    nx, nw, m = len(states), len(inputs), len(moving)
+    n, cols = nx + 2, nx + nw
+    Z, _, _, M0, DM, M, F0, F1, WW, _, G, R, Q, HT, ANCHOR, _, _, OWN, _, _, _, _ = layout(nx, nw)
+    for b in range(lanes):
+        if state_noise > 0.0:
+            for i in range(nx):
+                g = 1.0 / block[at(Z + nx, b)] if i == block[at(OWN, b)] else block[at(G + i, b)]
+                block[at(Q + i, b)] = state_noise * block[at(R + i, b)] / (g * g)
+        if m == n:
+            delta = block[at(Z + nx, b)] - block[at(ANCHOR, b)]
+            for i in range(nx):
+                for j in range(cols):
+                    block[at(M + i * cols + j, b)] = block[at(M0 + i * cols + j, b)] + block[at(DM + i * cols + j, b)] * delta
+        for i in range(nx):
+            f1 = 0.0
+            for j in range(nx):
+                f1 += block[at(M + i * cols + j, b)] * block[at(Z + j, b)]
+            for j in range(nw):
+                f1 += block[at(M + i * cols + nx + j, b)] * block[at(WW + j, b)]
+            block[at(F1 + i, b)] = f1
+            if m == n:
+                f0 = 0.0
+                for j in range(nx):
+                    f0 += block[at(DM + i * cols + j, b)] * block[at(Z + j, b)]
+                for j in range(nw):
+                    f0 += block[at(DM + i * cols + nx + j, b)] * block[at(WW + j, b)]
+                block[at(F0 + i, b)] = f0
+        for i in range(nx):
+            block[at(Z + i, b)] = block[at(F1 + i, b)]
+        if m == n:
+            block[at(Z + nx, b)] += block[at(HT, b)] * block[at(Z + nx + 1, b)]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def propagate_covariance(block: np.ndarray, lanes: int, states: tuple[float, ...], moving: tuple[float, ...], inputs: tuple[float, ...]) -> None:
+    """P = J P J^T + diag(Q) over one interval, J ``predict_states``' Jacobian, as T = J P, then J T^T
+    (P symmetric: T^T = P J^T); a fixed parameter's F0 and theta rows are +0."""
+    nx, nw, m = len(states), len(inputs), len(moving)
+    n, cols = nx + 2, nx + nw
+    _, PP, T, _, _, M, F0, _, _, _, _, _, Q, HT, _, _, _, _, _, _, _, _ = layout(nx, nw)
+    for b in range(lanes):
+        for i in range(nx):  # T = J P
+            for j in range(m):
+                t = block[at(F0 + i, b)] * block[at(PP + nx * n + j, b)] if m == n else 0.0
+                for c in range(nx):
+                    t += block[at(M + i * cols + c, b)] * block[at(PP + c * n + j, b)]
+                block[at(T + i * n + j, b)] = t
+        if m == n:
+            for j in range(n):
+                block[at(T + nx * n + j, b)] = block[at(PP + nx * n + j, b)] + block[at(HT, b)] * block[at(PP + (nx + 1) * n + j, b)]
+                block[at(T + (nx + 1) * n + j, b)] = block[at(PP + (nx + 1) * n + j, b)]
+        for i in range(nx):  # P = J T^T
+            for j in range(m):
+                p = block[at(F0 + i, b)] * block[at(T + j * n + nx, b)] if m == n else 0.0
+                for c in range(nx):
+                    p += block[at(M + i * cols + c, b)] * block[at(T + j * n + c, b)]
+                block[at(PP + i * n + j, b)] = p
+        if m == n:
+            for j in range(n):
+                block[at(PP + nx * n + j, b)] = block[at(T + j * n + nx, b)] + block[at(HT, b)] * block[at(T + j * n + nx + 1, b)]
+                block[at(PP + (nx + 1) * n + j, b)] = block[at(T + j * n + nx + 1, b)]
+        for i in range(m):
+            block[at(PP + i * n + i, b)] += block[at(Q + i, b)]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def measurement_update(block: np.ndarray, lanes: int, states: tuple[float, ...], moving: tuple[float, ...], inputs: tuple[float, ...]) -> None:
+    """The block's filters' update from y = g x + noise of variances R, g the gain at nominal but 1 / theta for
+    the state ``own`` (-1: none). The noise is independent across channels, so the channels update in
+    turn, each a scalar update linearised at the state the previous ones left (exact where y is linear
+    in the state; for the momentum read through 1 / theta, one relinearisation on the way): no matrix
+    inverse, and the log-density is the sum of the channels' conditional ones, whose innovation
+    variances and normalised innovations it leaves in rows VAR and VN. Theta then stays in [lo, hi],
+    where the model is defined (and positive, for a gain 1 / theta)."""
+    nx, nw, m = len(states), len(inputs), len(moving)
+    n = nx + 2
+    Z, PP, _, _, _, _, _, _, _, YY, G, R, _, _, _, LO, HI, OWN, VAR, VN, PH, _ = layout(nx, nw)
+    for b in range(lanes):
+        for i in range(nx):
+            if i == block[at(OWN, b)]:
+                g = 1.0 / block[at(Z + nx, b)]
+                d = -block[at(Z + i, b)] * g * g
+            else:
+                g = block[at(G + i, b)]
+                d = 0.0
+            v = block[at(YY + i, b)] - g * block[at(Z + i, b)]
+            for a in range(n):
+                block[at(PH + a, b)] = g * block[at(PP + a * n + i, b)] + d * block[at(PP + a * n + nx, b)]
+            variance = g * block[at(PH + i, b)] + d * block[at(PH + nx, b)] + block[at(R + i, b)]
+            inverse = 1.0 / variance  # one division, then products
+            v *= inverse  # the innovation over its variance
+            block[at(VAR + i, b)] = variance
+            block[at(VN + i, b)] = v
+            for a in range(m):
+                block[at(Z + a, b)] += block[at(PH + a, b)] * v
+                gain_a = block[at(PH + a, b)] * inverse
+                for c in range(a + 1):
+                    block[at(PP + a * n + c, b)] -= gain_a * block[at(PH + c, b)]
+                    block[at(PP + c * n + a, b)] = block[at(PP + a * n + c, b)]
+        if m == n:
+            block[at(Z + nx, b)] = min(block[at(HI, b)], max(block[at(LO, b)], block[at(Z + nx, b)]))
