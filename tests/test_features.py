@@ -49,3 +49,14 @@ def test_spectral_peaks_break_plateaus_and_ties_as_find_peaks_does():
     scale = np.ones(3)
     np.testing.assert_array_equal(spectral_peaks(residual, 0.25, scale, 2.0), peaks_row_by_row(residual, 0.25, scale, 2.0))
     assert np.all(spectral_peaks(residual, 0.25, scale, 2.0)[0] == 0.0)
+
+
+def test_residual_spectrogram_equals_scipy_stft_with_its_default_window_to_the_bit():
+    from scipy.signal import stft
+
+    residual = np.random.default_rng(5).normal(size=(7, 40)).cumsum(-1)
+    for frame, hop in ((40, 40), (16, 8)):
+        frequencies, times, magnitude = residual_spectrogram(residual, 0.25, frame, hop)
+        f, t, Z = stft(residual, fs=4.0, nperseg=frame, noverlap=frame - hop, boundary=None, padded=False, detrend="constant")
+        assert np.array_equal(frequencies, f) and np.array_equal(times, t)
+        assert np.abs(Z).tobytes() == magnitude.tobytes()

@@ -15,6 +15,7 @@ Two feature sets:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 
@@ -52,12 +53,23 @@ class Frame:
         return self.ea - self.ea_reference
 
 
+@cache
+def hann_window(length: int) -> np.ndarray:
+    """scipy's periodic Hann window of ``length`` samples (the STFT's default), computed once per length, read-only."""
+    from scipy.signal import get_window
+
+    window = get_window("hann", length)
+    window.flags.writeable = False
+    return window
+
+
 def residual_spectrogram(residual: np.ndarray, sub_window: float, frame: int, hop: int) -> tuple[np.ndarray, ...]:
     """Time-frequency map of an EA residual series (Fig 9): frequencies (Hz), segment times (s), |STFT|."""
     from scipy.signal import stft  # scipy.signal takes most of a second to import: only once a frame is classified
 
     frequencies, times, Z = stft(
-        residual, fs=1.0 / sub_window, nperseg=frame, noverlap=frame - hop, boundary=None, padded=False, detrend="constant"
+        residual, fs=1.0 / sub_window, window=hann_window(frame), nperseg=frame, noverlap=frame - hop, boundary=None, padded=False,
+        detrend="constant",
     )
     return frequencies, times, np.abs(Z)
 
