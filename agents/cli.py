@@ -65,7 +65,7 @@ def _train(args: argparse.Namespace) -> int:
         algo=args.algo, timesteps=args.timesteps, obs_mode=args.obs_mode, n_envs=args.n_envs, seed=args.seed, env_kwargs=env_kwargs,
         vec_env=args.vec_env, eval_every=args.eval_every, eval_episodes=args.eval_episodes,
         teacher=args.teacher, teacher_parameter=args.teacher_parameter, teacher_steps=args.teacher_steps,
-        dagger_rounds=args.dagger_rounds, wear_shaping=not args.no_wear_shaping,
+        dagger_rounds=args.dagger_rounds, wear_shaping=not args.no_wear_shaping, shaping_onset=args.shaping_onset,
         initial_carry_on=None if args.initial_carry_on == 0 else args.initial_carry_on,
     )
     resume = None if args.resume is None else Path(args.resume)
@@ -80,7 +80,8 @@ def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
     sb3_only = [flag for flag, used in (("--algo", args.algo != "ppo"), ("--teacher", args.teacher is not None),
                                         ("--resume", args.resume is not None), ("--vec-env", args.vec_env != "batched"),
                                         ("--dagger-rounds", args.dagger_rounds > 0), ("--system", args.system is not None),
-                                        ("--no-wear-shaping", args.no_wear_shaping), ("--initial-carry-on", args.initial_carry_on != 0.9)) if used]
+                                        ("--no-wear-shaping", args.no_wear_shaping), ("--shaping-onset", args.shaping_onset != 0.5),
+                                        ("--initial-carry-on", args.initial_carry_on != 0.9)) if used]
     if sb3_only:
         raise ValueError(f"--backend rllib trains PPO from scratch on the spring-mass-damper's native vector env: drop {', '.join(sb3_only)}")
     from agents.ray_cluster import require_ray
@@ -146,6 +147,17 @@ def _carry_on(text: str) -> float:
     return value
 
 
+def _shaping_onset(text: str) -> float:
+    """``--shaping-onset``: a wear in [0, 1)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 <= value < 1:
+        raise argparse.ArgumentTypeError(f"expected a wear in [0, 1), got {text!r}")
+    return value
+
+
 def default_agent() -> Path | None:
     """``agents/data/ppo_phm`` beside the installed package, if a policy was trained there."""
     directory = Path(__file__).parent / "data" / "ppo_phm"
@@ -207,6 +219,9 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--no-wear-shaping", action="store_true",
                        help="train on the environment's own rewards, without the potential-based shaping by the parts' true "
                             "wear (agents.shaping; validation always uses the environment's rewards)")
+    train.add_argument("--shaping-onset", type=_shaping_onset, default=0.5, metavar="W",
+                       help="the wear (0 at nominal, 1 at the safe limit) from which the shaping charges a part's wear, "
+                            "rising to the failure cost at the limit (agents.shaping; default 0.5; 0: from nominal on)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_environment(train)
     rllib = train.add_argument_group("RLlib", "--backend rllib: PPO with Ray RLlib (the optional extra ea-gym[rllib]); --n-envs is per env runner")

@@ -6,13 +6,24 @@ A learner then sees a maintenance step cost 1 or 52 now and its benefit as a sma
 -400 somewhere ahead, buried in the noise of every other episode's failures.
 
 ``WearShaping`` adds F = gamma * Phi(s') - Phi(s) to every training reward, with the potential
-Phi(s) = -failure_cost * sum over components of their true wear (0 at nominal, 1 at the safe limit,
-clipped to [0, 1]). A part wearing toward its limit is charged the failure's cost as it wears, a step
-that brings it back is credited at once, and a failure's -400 is offset by the wear it ends. Shaping of
-this form changes no policy's ranking (Ng, Harada and Russell, 1999: the shaped discounted return is
-the original one minus Phi of the first state), so the best policy stays the best for the
+
+    Phi(s) = -failure_cost * sum over components of clip((wear - onset) / (1 - onset), 0, 1),
+
+the wear a component's true way from nominal to the safe limit on its side (0 at nominal, 1 at the
+limit). A part wearing past the onset toward its limit is charged the failure's cost as it wears, a
+step that brings it back is credited at once, and a failure's -400 is offset by the wear it ends.
+Shaping of this form changes no policy's ranking (Ng, Harada and Russell, 1999: the shaped discounted
+return is the original one minus Phi of the first state), so the best policy stays the best for the
 environment's own cost. The potential reads the true parameters from the step's info (the simulator's
 state, which the policy never sees); validation and evaluation use the environment's own rewards.
+
+Why an onset (default 0.5): wear far from the limit can still be corrected in time, and the best
+policies leave it alone (the oracle corrects at 2 s of RUL). Charged from nominal on (onset 0), every
+corrective step on a worn part is credited 10 to 30 times its cost wherever the part is, and learners
+corrected from the first sign of wear on, in runs of consecutive steps. A corrective action keeps its
+direction while it is continued, so such runs carried the part through nominal to the opposite limit:
+most failures of those learners were of parts under corrective action (``experiments/results/from_scratch``).
+Charged from the onset on, a corrective step pays only where the part is near its limit, one step at a time.
 """
 
 from __future__ import annotations
@@ -35,23 +46,28 @@ def true_wear(parameters: dict[str, float], nominal: dict[str, float], limits: d
 
 
 class WearShaping(VecEnvWrapper):
-    """Adds gamma * Phi(s') - Phi(s) to the rewards, Phi = -scale * sum of the true wear (see the module).
+    """Adds gamma * Phi(s') - Phi(s) to the rewards, Phi = -scale * sum of the true wear past ``onset``,
+    rescaled to [0, 1] (see the module).
 
     Args:
         venv: the maintenance VecEnv (infos with ``true_parameters``; ``nominal_parameters`` and ``safe_limits``).
         gamma: the learner's discount (the shaping keeps the best policy only with the same one).
         scale: the potential at one component's limit, in the cost model's unit (the failure cost).
+        onset: the wear in [0, 1) from which the potential falls (0: from nominal on).
     """
 
-    def __init__(self, venv: VecEnv, gamma: float, scale: float):
+    def __init__(self, venv: VecEnv, gamma: float, scale: float, onset: float = 0.0):
+        if not (isinstance(onset, (int, float)) and 0.0 <= onset < 1.0):
+            raise ValueError(f"shaping onset must be a wear in [0, 1), got {onset!r}")
         super().__init__(venv)
-        self.gamma, self.scale = float(gamma), float(scale)
+        self.gamma, self.scale, self.onset = float(gamma), float(scale), float(onset)
         self.nominal = venv.get_attr("nominal_parameters")[0]
         self.limits = venv.get_attr("safe_limits")[0]
         self.potential = np.zeros(venv.num_envs)
 
     def _potential(self, info: dict[str, Any]) -> float:
-        return -self.scale * float(true_wear(info["true_parameters"], self.nominal, self.limits).sum())
+        wear = true_wear(info["true_parameters"], self.nominal, self.limits)
+        return -self.scale * float(np.clip((wear - self.onset) / (1.0 - self.onset), 0.0, 1.0).sum())
 
     def reset(self) -> Any:
         self.potential = np.zeros(self.num_envs)  # every episode starts with its components at nominal

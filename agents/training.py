@@ -89,6 +89,7 @@ class TrainingRun:
     dagger_rounds: int = 0  # DAgger rounds after the cloning: the learner acts, the teacher labels (agents.imitation)
     activity: bool = True  # the learner also sees each element's EA on a log scale (agents.observations); runs saved without the field did not
     wear_shaping: bool = True  # training rewards shaped with the true wear (agents.shaping); validation uses the environment's
+    shaping_onset: float = 0.5  # the wear from which the shaping's potential falls (agents.shaping); runs saved without the field had 0
     initial_carry_on: float | None = 0.9  # a new PPO or A2C policy's probability of carrying on (agents.initial_policy); None: uniform
 
 
@@ -136,7 +137,7 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
     monitored: VecEnv = VecMonitor(env)
     if run.wear_shaping:  # unshaped (scale 0) on validation: the same wrappers, for SB3's synchronised normalisation
         scale = monitored.get_attr("core")[0].config.costs.failure if shaped else 0.0
-        monitored = WearShaping(monitored, gamma=hyperparameters(run).get("gamma", 0.99), scale=scale)
+        monitored = WearShaping(monitored, gamma=hyperparameters(run).get("gamma", 0.99), scale=scale, onset=run.shaping_onset)
     return LearnerView(monitored, activity=run.activity)
 
 
@@ -150,13 +151,16 @@ def default_hyperparameters(algo: str, n_envs: int, cloned: bool = False) -> dic
     """Settings that train in minutes on two cores (episodes are 500 steps).
 
     A policy cloned from a teacher is fine-tuned gently (smaller steps and clipping, no entropy bonus)
-    so that the first updates, on a value function fitted to the teacher, do not undo the cloning.
+    so that the first updates, on a value function fitted to the teacher, do not undo the cloning. A new
+    policy makes 10 passes over each rollout: with 5, 200,000 steps left one fault type's corrective
+    action a state-independent dither that the deterministic policy never takes
+    (``experiments/results/from_scratch``).
     """
     if algo == "ppo":
         if cloned:
             return {"n_steps": max(4096 // n_envs, 32), "batch_size": 512, "n_epochs": 5, "gamma": 0.99,
                     "gae_lambda": 0.95, "learning_rate": 5e-5, "ent_coef": 0.0, "clip_range": 0.1}
-        return {"n_steps": max(2048 // n_envs, 32), "batch_size": 256, "n_epochs": 5, "gamma": 0.99,
+        return {"n_steps": max(2048 // n_envs, 32), "batch_size": 256, "n_epochs": 10, "gamma": 0.99,
                 "gae_lambda": 0.95, "learning_rate": 3e-4, "ent_coef": 0.01}
     if algo == "a2c":
         return {"n_steps": 16, "gamma": 0.99, "learning_rate": 7e-4, "ent_coef": 0.01}
@@ -379,12 +383,13 @@ def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool
 
 
 def summary_run(directory: Path) -> TrainingRun:
-    """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it;
-    their ``checkpoint_every``, from before every evaluation was checkpointed, is dropped)."""
+    """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it,
+    those before ``shaping_onset`` shaped from nominal on; their ``checkpoint_every``, from before every
+    evaluation was checkpointed, is dropped)."""
     path = Path(directory) / SUMMARY_FILE
     try:
         recorded = {key: value for key, value in read_document(path)["run"].items() if key != "checkpoint_every"}
-        return TrainingRun(**{"activity": False, **recorded})
+        return TrainingRun(**{"activity": False, "shaping_onset": 0.0, **recorded})
     except (ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path}: cannot read the training run ({error})") from None
 
