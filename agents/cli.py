@@ -80,8 +80,8 @@ def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
     sb3_only = [flag for flag, used in (("--algo", args.algo != "ppo"), ("--teacher", args.teacher is not None),
                                         ("--resume", args.resume is not None), ("--vec-env", args.vec_env != "batched"),
                                         ("--dagger-rounds", args.dagger_rounds > 0), ("--system", args.system is not None),
-                                        ("--no-wear-shaping", args.no_wear_shaping), ("--shaping-onset", args.shaping_onset != 0.5),
-                                        ("--initial-carry-on", args.initial_carry_on != 0.9)) if used]
+                                        ("--no-wear-shaping", args.no_wear_shaping), ("--shaping-onset", args.shaping_onset != 0.3),
+                                        ("--initial-carry-on", args.initial_carry_on != 0.8)) if used]
     if sb3_only:
         raise ValueError(f"--backend rllib trains PPO from scratch on the spring-mass-damper's native vector env: drop {', '.join(sb3_only)}")
     from agents.ray_cluster import require_ray
@@ -212,16 +212,16 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--dagger-rounds", type=non_negative_int, default=0,
                        help="DAgger rounds after the cloning: the learner acts, the teacher labels, the policy is refitted "
                             "on all labelled steps (default 0; needs --teacher)")
-    train.add_argument("--initial-carry-on", type=_carry_on, default=0.9, metavar="P",
+    train.add_argument("--initial-carry-on", type=_carry_on, default=0.8, metavar="P",
                        help="a new PPO or A2C policy carries on with probability P, the maintenance actions sharing the rest in "
                             "inverse proportion to their immediate cost (agents.initial_policy); 0: stable-baselines3's uniform "
-                            "start (default 0.9)")
+                            "start (default 0.8)")
     train.add_argument("--no-wear-shaping", action="store_true",
                        help="train on the environment's own rewards, without the potential-based shaping by the parts' true "
                             "wear (agents.shaping; validation always uses the environment's rewards)")
-    train.add_argument("--shaping-onset", type=_shaping_onset, default=0.5, metavar="W",
+    train.add_argument("--shaping-onset", type=_shaping_onset, default=0.3, metavar="W",
                        help="the wear (0 at nominal, 1 at the safe limit) from which the shaping charges a part's wear, "
-                            "rising to the failure cost at the limit (agents.shaping; default 0.5; 0: from nominal on)")
+                            "rising to the failure cost at the limit (agents.shaping; default 0.3; 0: from nominal on)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")
     _add_environment(train)
     rllib = train.add_argument_group("RLlib", "--backend rllib: PPO with Ray RLlib (the optional extra ea-gym[rllib]); --n-envs is per env runner")

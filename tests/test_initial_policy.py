@@ -34,7 +34,8 @@ def test_a_new_ppo_policy_acts_with_the_initial_probabilities_in_every_state():
     run = TrainingRun(obs_mode="oracle", n_envs=2, env_kwargs={"horizon": 20}, hyperparameters={"n_steps": 16, "batch_size": 32})
     env = make_vec_env(run, 2, seed=0)
     model, normalized = make_model(run, env, {"n_steps": 16, "batch_size": 32}, None, None, None)
-    expected = initial_probabilities(env.get_attr("action_meanings")[0], CostModel(), 0.9)
+    assert run.initial_carry_on == 0.8  # the default
+    expected = initial_probabilities(env.get_attr("action_meanings")[0], CostModel(), 0.8)
     observation = normalized.reset()
     for _ in range(3):
         tensor, _ = model.policy.obs_to_tensor(observation)
