@@ -13,8 +13,8 @@ production): with the default costs and ``carry_on`` 0.8 (``agents.training.Trai
 corrective action 0.065 and each replacement 0.0013. The learner tries the cheap actions often enough
 to find where they pay, and the expensive ones rarely. At 0.9 (each corrective action 0.033) a
 corrective action's logit had 3.3 nats to climb before the deterministic policy took it, and learners
-took longer to leave running to failure (``experiments/results/from_scratch``). Only the action head's bias is set: its weights stay tiny, so every state starts
-from this distribution.
+took longer to leave running to failure (``experiments/results/from_scratch``). Only the action head's
+bias is set: its weights stay tiny, so every state starts from this distribution.
 """
 
 from __future__ import annotations
