@@ -6,6 +6,7 @@ import pytest
 
 from agents.shaping import WearShaping, true_wear
 from agents.training import TrainingRun, make_vec_env
+from ea_gym.cli import main
 
 LIMITS = {"k": (85.0, 105.0), "b": (0.4, 0.6)}
 NOMINAL = {"k": 100.0, "b": 0.5}
@@ -50,14 +51,21 @@ def test_shaped_rewards_telescope_to_the_environments_return_minus_the_potential
 
 
 def test_the_potential_is_zero_below_the_onset_and_the_failure_cost_at_the_limit():
-    assert TrainingRun().shaping_onset == 0.5  # the default
+    assert TrainingRun().shaping_onset == 0.3  # the default
     wrapper = make_vec_env(TrainingRun(obs_mode="oracle", n_envs=1), 1, seed=0, shaped=True).venv
-    nominal = dict(wrapper.nominal)
-    worn = {**nominal, "m": nominal["m"] - 0.4 * (nominal["m"] - wrapper.limits["m"][0])}  # 0.4 of the way: below the onset
+    nominal, low_m = dict(wrapper.nominal), wrapper.limits["m"][0]
+    worn = {**nominal, "m": nominal["m"] - 0.25 * (nominal["m"] - low_m)}  # a quarter of the way: below the onset
     assert wrapper._potential({"true_parameters": worn}) == 0.0
-    worn["m"] = nominal["m"] - 0.75 * (nominal["m"] - wrapper.limits["m"][0])  # half-way from the onset to the limit
+    worn["m"] = nominal["m"] - 0.65 * (nominal["m"] - low_m)  # half-way from the onset (0.3) to the limit
     assert wrapper._potential({"true_parameters": worn}) == pytest.approx(-200.0)
     worn["k"] = wrapper.limits["k"][1] + 1.0  # past its limit: the failure cost, no more
     assert wrapper._potential({"true_parameters": worn}) == pytest.approx(-600.0)
     with pytest.raises(ValueError, match="shaping onset must be a wear in"):
         WearShaping(wrapper.venv, gamma=0.99, scale=400.0, onset=1.0)
+
+
+def test_train_command_refuses_a_shaping_onset_outside_0_1(capsys):
+    for bad in ("1", "-0.1", "nan", "x"):
+        with pytest.raises(SystemExit) as stop:
+            main(["train", "--shaping-onset", bad, "--out", "x"])
+        assert stop.value.code == 2 and "expected a wear in [0, 1)" in capsys.readouterr().err
