@@ -7,7 +7,8 @@ An agent directory (``ea-gym train --out DIR``) holds
   activation function, features extractor and optimizer by name, with their keyword arguments); the
   observation and action spaces as numbers (a Dict of Box shapes, bounds and dtypes; Discrete n); the
   environment the agent was trained on (id, obs_mode, keyword arguments, and whether the learner saw
-  the EA on a log scale, ``agents.observations.LearnerView``); the ``VecNormalize`` statistics as numbers
+  the EA on a log scale and the suspect's wear, ``agents.observations.LearnerView``; agents saved before
+  ``suspect_wear`` did not see it); the ``VecNormalize`` statistics as numbers
   (per normalised key the running mean, variance and count, ``clip_obs``, ``epsilon``, the keys, and
   the reward normalisation's settings and return statistics); the optimizer's parameter groups;
 - ``policy.safetensors``: the policy's ``state_dict``;
@@ -173,12 +174,13 @@ class Normalization:
 @dataclass(frozen=True)
 class TrainedEnvironment:
     """The environment an agent was trained on: ``gym.make(env_id, obs_mode=obs_mode, **env_kwargs)``, seen
-    through ``LearnerView(..., activity=activity)``."""
+    through ``LearnerView(..., activity=activity, suspect_wear=suspect_wear)``."""
 
     env_id: str
     obs_mode: str
     env_kwargs: dict[str, Any] = field(default_factory=dict)
     activity: bool = False
+    suspect_wear: bool = False
 
 
 @dataclass(frozen=True)
@@ -224,7 +226,7 @@ def save_agent(
         "observation_space": describe_space(policy.observation_space),
         "action_space": describe_space(policy.action_space),
         "environment": {"id": environment.env_id, "obs_mode": environment.obs_mode, "env_kwargs": dict(environment.env_kwargs),
-                        "activity": environment.activity},
+                        "activity": environment.activity, "suspect_wear": environment.suspect_wear},
         "normalization": Normalization.of(normalization).to_json(),
         "optimizer": {"param_groups": optimizer_groups},
     }
@@ -275,6 +277,7 @@ def read_agent(directory: Path) -> AgentDescription:
             obs_mode=_field(environment, "obs_mode", str, f"{where}: environment"),
             env_kwargs=_field(environment, "env_kwargs", dict, f"{where}: environment"),
             activity=_field(environment, "activity", bool, f"{where}: environment"),
+            suspect_wear=_field({"suspect_wear": False, **environment}, "suspect_wear", bool, f"{where}: environment"),
         ),
         normalization=Normalization.from_json(_field(data, "normalization", dict, where), f"{where}: normalization"),
         optimizer_groups=groups,

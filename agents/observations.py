@@ -15,6 +15,12 @@ a different position for each (0.75 for the spring's (85, 105) N/m): a key ``wea
 component's way covered from nominal toward the limit on its estimate's side (0 at nominal, 1 at the
 limit), the coordinate in which a corrective rule acts (``agents.policies.CorrectiveBand``).
 
+The diagnosis says which component is the suspect, ``wear`` how far each one has gone: a rule acts on
+the two together (the suspect's wear, ``agents.policies.CorrectiveBand``), which a small network must
+otherwise learn as a product. With ``suspect_wear``, a key ``suspect_wear`` adds, per component, its
+share of the diagnosis' belief in the fault classes (0 while the diagnosis believes in no fault) times
+its wear.
+
 Standardising the EA by its mean and std puts a damper's 0.001 J and 0.01 J over a step at the same
 value, while how well a component's parameter can be estimated depends on exactly that (a weakly
 excited damper's estimate scatters three times as widely): with ``activity``, a key ``activity`` adds
@@ -48,12 +54,14 @@ def normalised_keys(observation_space: spaces.Dict) -> list[str]:
 class LearnerView(VecEnvWrapper):
     """Replaces ``observation["rul"]`` (s, in [0, rul_max]) by log(1 + rul) / log(1 + rul_max) and adds
     ``observation["wear"]``, each component's way from nominal to the limit its estimate heads for,
-    clipped to [0, 2], and with ``activity`` the key ``activity``: each element's EA on a log scale.
+    clipped to [0, 2], with ``activity`` the key ``activity``: each element's EA on a log scale, and with
+    ``suspect_wear`` the key ``suspect_wear``: each component's share of the fault classes' belief times
+    its wear, in [0, 2].
 
     Observations without ``rul`` or ``parameter_estimate`` (obs_mode "sensors") keep those keys as they are.
     """
 
-    def __init__(self, venv: VecEnv, activity: bool = False):
+    def __init__(self, venv: VecEnv, activity: bool = False, suspect_wear: bool = False):
         space = cast(spaces.Dict, venv.observation_space)
         self.activity = bool(activity) and "ea" in space.spaces
         if self.activity:
@@ -61,10 +69,17 @@ class LearnerView(VecEnvWrapper):
         self.scale = math.log1p(float(np.max(cast(spaces.Box, space["rul"]).high))) if "rul" in space.spaces else None
         if self.scale is not None:
             space = spaces.Dict({**space.spaces, "rul": spaces.Box(0.0, 1.0, space["rul"].shape, np.float32)})
-        self.nominal = None
+        self.nominal, self.suspect_class = None, None
         if "parameter_estimate" in space.spaces:
-            self.nominal = np.array(ActionMap.from_env(venv).nominal_positions, dtype=np.float32)
+            actions = ActionMap.from_env(venv)
+            self.nominal = np.array(actions.nominal_positions, dtype=np.float32)
             space = spaces.Dict({**space.spaces, "wear": spaces.Box(0.0, 2.0, self.nominal.shape, np.float32)})
+            # each component's diagnosis class (column of observation["diagnosis"]), 0 ("none") for one without
+            self.suspect_class = None
+            if suspect_wear and "diagnosis" in space.spaces:
+                self.suspect_class = np.array([actions.diagnosis_classes.index(c) if c in actions.diagnosis_classes else 0
+                                               for c in actions.components])
+                space = spaces.Dict({**space.spaces, "suspect_wear": spaces.Box(0.0, 2.0, self.nominal.shape, np.float32)})
         super().__init__(venv, observation_space=space)
 
     def forward(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -74,14 +89,19 @@ class LearnerView(VecEnvWrapper):
             view["rul"] = (np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale).astype(np.float32)
         if self.nominal is not None and "parameter_estimate" in observation:
             view["wear"] = np.clip(wear_fraction(observation["parameter_estimate"], self.nominal), 0.0, 2.0).astype(np.float32)
+            if self.suspect_class is not None:
+                beliefs = np.asarray(observation["diagnosis"], dtype=float)
+                faults = beliefs[..., 1:].sum(axis=-1, keepdims=True)
+                share = np.where(self.suspect_class > 0, beliefs[..., self.suspect_class], 0.0) / np.maximum(faults, TINY)
+                view["suspect_wear"] = (share * view["wear"]).astype(np.float32)
         if self.activity and "ea" in observation:
             microjoules = np.maximum(np.asarray(observation["ea"], dtype=float), TINY) / ACTIVITY_FLOOR
             view["activity"] = np.clip(np.log10(microjoules) / ACTIVITY_DECADES, 0.0, 1.0).astype(np.float32)
         return view
 
     def inverse(self, observation: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-        """The environment observation back from the learner's view (RUL in s again, no ``wear`` or ``activity``)."""
-        restored = {key: value for key, value in observation.items() if key not in ("wear", "activity")}
+        """The environment observation back from the learner's view (RUL in s again, no ``wear``, ``activity`` or ``suspect_wear``)."""
+        restored = {key: value for key, value in observation.items() if key not in ("wear", "activity", "suspect_wear")}
         if self.scale is not None and "rul" in observation:
             restored["rul"] = np.expm1(observation["rul"].astype(float) * self.scale).astype(np.float32)
         return restored

@@ -88,6 +88,7 @@ class TrainingRun:
     teacher_steps: int = 100_000  # environment steps the teacher runs for the cloning (and each DAgger round)
     dagger_rounds: int = 0  # DAgger rounds after the cloning: the learner acts, the teacher labels (agents.imitation)
     activity: bool = True  # the learner also sees each element's EA on a log scale (agents.observations); runs saved without the field did not
+    suspect_wear: bool = True  # the learner also sees the suspect's wear (agents.observations); runs saved without the field did not
     wear_shaping: bool = True  # training rewards shaped with the true wear (agents.shaping); validation uses the environment's
     shaping_onset: float = 0.3  # the wear from which the shaping's potential falls (agents.shaping); runs saved without the field had 0
     initial_carry_on: float | None = 0.8  # a new PPO or A2C policy's probability of carrying on (agents.initial_policy); None: uniform
@@ -138,7 +139,7 @@ def make_vec_env(run: TrainingRun, n_envs: int, seed: int, kind: str | None = No
     if run.wear_shaping:  # unshaped (scale 0) on validation: the same wrappers, for SB3's synchronised normalisation
         scale = monitored.get_attr("core")[0].config.costs.failure if shaped else 0.0
         monitored = WearShaping(monitored, gamma=hyperparameters(run).get("gamma", 0.99), scale=scale, onset=run.shaping_onset)
-    return LearnerView(monitored, activity=run.activity)
+    return LearnerView(monitored, activity=run.activity, suspect_wear=run.suspect_wear)
 
 
 def normalize(env: VecEnv, training: bool = True) -> VecNormalize:
@@ -176,7 +177,8 @@ def hyperparameters(run: TrainingRun) -> dict[str, Any]:
 
 def trained_environment(run: TrainingRun) -> TrainedEnvironment:
     """The environment ``make_vec_env`` makes for ``run``, as an agent directory records it."""
-    return TrainedEnvironment(env_id(run.env_kwargs.get("system")), run.obs_mode, {"continue_after_failure": True, **run.env_kwargs}, run.activity)
+    return TrainedEnvironment(env_id(run.env_kwargs.get("system")), run.obs_mode, {"continue_after_failure": True, **run.env_kwargs},
+                              run.activity, run.suspect_wear)
 
 
 def train(
@@ -337,6 +339,7 @@ def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:
     for name, agent, here in (("algo", stored.algorithm, run.algo), ("obs_mode", stored.environment.obs_mode, environment.obs_mode),
                               ("env_kwargs", stored.environment.env_kwargs, environment.env_kwargs),
                               ("activity", stored.environment.activity, environment.activity),
+                              ("suspect_wear", stored.environment.suspect_wear, environment.suspect_wear),
                               ("env id", stored.environment.env_id, environment.env_id)):
         if agent != here:
             raise ValueError(f"resume: the agent was trained with {name} {agent!r}, this run has {here!r}")
@@ -373,7 +376,8 @@ def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool
     expected_id = env_id(environment.env_kwargs.get("system"))
     if environment.env_id != expected_id:
         raise ValueError(f"{directory / AGENT_FILE}: the agent was trained on {environment.env_id!r}, not {expected_id!r}")
-    run = TrainingRun(algo=description.algorithm, obs_mode=environment.obs_mode, env_kwargs=environment.env_kwargs, activity=environment.activity)
+    run = TrainingRun(algo=description.algorithm, obs_mode=environment.obs_mode, env_kwargs=environment.env_kwargs, activity=environment.activity,
+                      suspect_wear=environment.suspect_wear)
     view = cast(LearnerView, make_vec_env(run, 1, 0, kind="batched"))
     expected = {key: space.shape for key, space in description.observation_space.spaces.items()}
     seen = {key: space.shape for key, space in cast(gym.spaces.Dict, view.observation_space).spaces.items()}
@@ -384,13 +388,13 @@ def load_policy(directory: Path, obs_mode: str | None = None, trust_pickle: bool
 
 
 def summary_run(directory: Path) -> TrainingRun:
-    """The run ``directory/training.json`` records (runs saved before the ``activity`` field did not see it,
+    """The run ``directory/training.json`` records (runs saved before the ``activity`` or ``suspect_wear`` field did not see it,
     those before ``shaping_onset`` shaped from nominal on; their ``checkpoint_every``, from before every
     evaluation was checkpointed, is dropped)."""
     path = Path(directory) / SUMMARY_FILE
     try:
         recorded = {key: value for key, value in read_document(path)["run"].items() if key != "checkpoint_every"}
-        return TrainingRun(**{"activity": False, "shaping_onset": 0.0, **recorded})
+        return TrainingRun(**{"activity": False, "suspect_wear": False, "shaping_onset": 0.0, **recorded})
     except (ValueError, KeyError, TypeError) as error:
         raise ValueError(f"{path}: cannot read the training run ({error})") from None
 
@@ -419,7 +423,7 @@ class NormalizedPolicy:
     Attributes:
         policy: the stable-baselines3 policy.
         normalization: the observation normalisation's statistics (``VecNormalize`` in training).
-        view: the ``LearnerView`` the policy was trained through (RUL on a log scale, wear, activity).
+        view: the ``LearnerView`` the policy was trained through (RUL on a log scale, wear, activity, suspect's wear).
         obs_mode: the environment's obs_mode.
         num_timesteps: environment steps the policy was trained for.
     """
