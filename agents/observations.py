@@ -89,7 +89,7 @@ class LearnerView(VecEnvWrapper):
             view["rul"] = (np.log1p(np.maximum(observation["rul"], 0.0)) / self.scale).astype(np.float32)
         if self.nominal is not None and "parameter_estimate" in observation:
             view["wear"] = np.clip(wear_fraction(observation["parameter_estimate"], self.nominal), 0.0, 2.0).astype(np.float32)
-            if self.suspect_class is not None:
+            if self.suspect_class is not None and "diagnosis" in observation:
                 beliefs = np.asarray(observation["diagnosis"], dtype=float)
                 faults = beliefs[..., 1:].sum(axis=-1, keepdims=True)
                 share = np.where(self.suspect_class > 0, beliefs[..., self.suspect_class], 0.0) / np.maximum(faults, TINY)

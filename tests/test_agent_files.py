@@ -125,7 +125,7 @@ def test_agent_json_is_numbers_and_names(tmp_path):
     assert data["policy"]["kwargs"]["activation_fn"] == "ReLU" and data["policy"]["kwargs"]["optimizer_class"] == "RMSprop"
     assert data["action_space"] == {"type": "Discrete", "n": 7, "start": 0}
     assert data["environment"] == {"id": "ea_gym/SpringMassDamper-v0", "obs_mode": "oracle", "env_kwargs": {"continue_after_failure": True},
-                                   "activity": True}
+                                   "activity": True, "suspect_wear": True}
     ea = data["normalization"]["obs_rms"]["ea"]
     assert ea["mean"] == env.obs_rms["ea"].mean.tolist() and ea["var"] == env.obs_rms["ea"].var.tolist()
     assert data["normalization"]["norm_obs_keys"] == env.norm_obs_keys
@@ -249,4 +249,7 @@ def test_the_committed_agents_are_agent_directories_without_pickle(name):
     assert f"{description.num_timesteps} steps" == summary["selected"]["checkpoint"]
     assert description.environment.obs_mode == summary["run"]["obs_mode"]
     assert description.environment.activity == summary["run"].get("activity", False)  # runs saved before the field did not see it
+    # trained before the suspect's wear: agent.json lacks the field and the loaded view lacks the key (load_policy checks every key's shape)
+    assert "suspect_wear" not in json.loads((directory / "agent.json").read_text())["environment"] and not description.environment.suspect_wear
+    assert "suspect_wear" not in load_policy(directory).view.observation_space.spaces
     build_policy(description, directory)  # every tensor of the architecture agent.json names, shapes checked

@@ -36,6 +36,24 @@ def test_wear_is_the_way_from_nominal_to_the_limit_on_the_estimates_side():
     assert "wear" not in env.inverse(view) and env.inverse(view)["parameter_estimate"] is estimate
 
 
+def test_suspect_wear_is_each_components_share_of_the_fault_belief_times_its_wear():
+    env = make_vec_env(TrainingRun(obs_mode="phm"), 3, 0)
+    assert env.observation_space["suspect_wear"].contains(env.reset()["suspect_wear"][0])
+    # diagnosis classes (none, k, m, b); components (k, m, b) at nominal positions 0.75, 0.5, 0.5
+    diagnosis = np.array([[0.5, 0.1, 0.3, 0.1], [1.0, 0.0, 0.0, 0.0], [0.2, 0.0, 0.0, 0.8]], np.float32)
+    estimate = np.array([[0.9, 0.1, 0.5], [0.375, 1.0, -0.5], [0.375, 1.0, -0.5]], np.float32)
+    view = env.forward({"diagnosis": diagnosis, "parameter_estimate": estimate})
+    # wear (0.6, 0.8, 0), shares of the fault belief 0.5: (0.2, 0.6, 0.2); no fault believed: 0; all on b: b's wear 2
+    np.testing.assert_allclose(view["suspect_wear"], [[0.12, 0.48, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 2.0]], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(env.forward({"diagnosis": diagnosis[0], "parameter_estimate": estimate[0]})["suspect_wear"],
+                               [0.12, 0.48, 0.0], rtol=1e-6)  # a single observation too
+    assert "suspect_wear" not in env.inverse(view)
+    # models trained without the key load with a view without it; sensors mode has no diagnosis
+    old = make_vec_env(TrainingRun(obs_mode="phm", suspect_wear=False), 1, 0)
+    assert "suspect_wear" not in old.observation_space.spaces and "suspect_wear" not in old.reset()
+    assert "suspect_wear" not in make_vec_env(TrainingRun(obs_mode="sensors"), 1, 0).observation_space.spaces
+
+
 def test_activity_is_each_elements_ea_on_a_log_scale_from_a_microjoule_to_a_joule():
     env = make_vec_env(TrainingRun(obs_mode="phm"), 2, 0)
     assert env.observation_space["activity"].contains(env.reset()["activity"][0])
