@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from agents.conventions import AGENT_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE, SUMMARY_FILE, TRUST_PICKLE, refuse_pickle
-from ea_gym.cli_args import Subcommands, env_option, non_negative_int, positive_int, system_option
+from ea_gym.cli_args import Subcommands, env_option, fraction_below_one, non_negative_int, positive_int, system_option
 from ea_gym.files import check_output_directory, staged_output
 
 __all__ = ["add_train", "add_benchmark", "add_convert_agent", "default_agent", "BENCHMARK_POLICIES"]
@@ -136,28 +136,6 @@ def _add_environment(parser: argparse.ArgumentParser) -> None:
     )
 
 
-def _carry_on(text: str) -> float:
-    """``--initial-carry-on``: a probability in (0, 1), or 0 for the uniform start."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not (value == 0 or 0 < value < 1):
-        raise argparse.ArgumentTypeError(f"expected a probability in (0, 1), or 0 for a uniform start, got {text!r}")
-    return value
-
-
-def _shaping_onset(text: str) -> float:
-    """``--shaping-onset``: a wear in [0, 1)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = -1.0
-    if not 0 <= value < 1:
-        raise argparse.ArgumentTypeError(f"expected a wear in [0, 1), got {text!r}")
-    return value
-
-
 def default_agent() -> Path | None:
     """``agents/data/ppo_phm`` beside the installed package, if a policy was trained there."""
     directory = Path(__file__).parent / "data" / "ppo_phm"
@@ -212,14 +190,14 @@ def add_train(commands: Subcommands) -> None:
     train.add_argument("--dagger-rounds", type=non_negative_int, default=0,
                        help="DAgger rounds after the cloning: the learner acts, the teacher labels, the policy is refitted "
                             "on all labelled steps (default 0; needs --teacher)")
-    train.add_argument("--initial-carry-on", type=_carry_on, default=0.8, metavar="P",
+    train.add_argument("--initial-carry-on", type=fraction_below_one("a probability in (0, 1), or 0 for a uniform start"), default=0.8, metavar="P",
                        help="a new PPO or A2C policy carries on with probability P, the maintenance actions sharing the rest in "
                             "inverse proportion to their immediate cost (agents.initial_policy); 0: stable-baselines3's uniform "
                             "start (default 0.8)")
     train.add_argument("--no-wear-shaping", action="store_true",
                        help="train on the environment's own rewards, without the potential-based shaping by the parts' true "
                             "wear (agents.shaping; validation always uses the environment's rewards)")
-    train.add_argument("--shaping-onset", type=_shaping_onset, default=0.3, metavar="W",
+    train.add_argument("--shaping-onset", type=fraction_below_one("a wear in [0, 1)"), default=0.3, metavar="W",
                        help="the wear (0 at nominal, 1 at the safe limit) from which the shaping charges a part's wear, "
                             "rising to the failure cost at the limit (agents.shaping; default 0.3; 0: from nominal on)")
     train.add_argument("--no-progress", action="store_true", help="no progress bar")

@@ -5,12 +5,13 @@ from __future__ import annotations
 
 import argparse
 import json
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
 
 __all__ = [
     "COMMAND_GROUP", "Subcommands", "env_option", "positive_int", "non_negative_int", "positive_float", "non_negative_float",
-    "system_option",
+    "fraction_below_one", "system_option",
 ]
 
 #: entry-point group of subcommands from other packages: each entry is ``add(commands: Subcommands) -> None``,
@@ -54,6 +55,22 @@ def non_negative_float(text: str) -> float:
     if not 0 <= value < float("inf"):
         raise argparse.ArgumentTypeError(f"expected a number >= 0, got {text}")
     return value
+
+
+def fraction_below_one(expected: str) -> Callable[[str], float]:
+    """An argparse type for a number in [0, 1); a refusal says ``expected ...`` with ``expected`` (what the value
+    means, e.g. "a wear in [0, 1)") and the text given (NaN and words refused)."""
+
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            value = -1.0
+        if not 0 <= value < 1:
+            raise argparse.ArgumentTypeError(f"expected {expected}, got {text!r}")
+        return value
+
+    return parse
 
 
 def env_option(text: str) -> tuple[str, Any]:
