@@ -151,14 +151,19 @@ def activity_index(ea: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
     if not ea:
         raise ValueError("activity_index needs at least one element")
     stacked = np.stack([np.asarray(v, dtype=float) for v in ea.values()])
-    for name, values in zip(ea, stacked):
-        bad = ~(np.isfinite(values) & (values >= 0))
-        if bad.any():
-            raise ValueError(f"activity_index: the EA of {name!r} must be finite and >= 0 J, got {float(values[bad].flat[0])!r}")
+    return dict(zip(ea.keys(), activity_shares(stacked, tuple(ea))))
+
+
+def activity_shares(stacked: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """``activity_index`` of the elements ``names`` whose EA (J) are the rows of ``stacked`` (len(names), ...):
+    their shares, same shape (the EA summed over the rows in order)."""
+    valid = np.isfinite(stacked) & (stacked >= 0)
+    if not valid.all():
+        row = int(np.flatnonzero(~valid.reshape(len(stacked), -1).all(axis=1))[0])
+        raise ValueError(f"activity_index: the EA of {names[row]!r} must be finite and >= 0 J, got {float(stacked[row][~valid[row]].flat[0])!r}")
     total = stacked.sum(axis=0)
     safe = np.where(total > 0, total, 1.0)
-    shares = np.where(total > 0, stacked / safe, 1.0 / len(ea))
-    return dict(zip(ea.keys(), shares))
+    return np.where(total > 0, stacked / safe, 1.0 / len(stacked))
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from ea_gym._kernels.activity import interval_activities, trapezoid_activity, tr
 from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, solve
 from ea_gym._kernels.monitor import chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
+from ea_gym._kernels.prognosis import drift_ends
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym._kernels.smoothing import LANES, filter_into, filter_lanes, filter_rows
 from ea_gym.bondgraph.simulation import hermite_coefficients
@@ -264,3 +265,54 @@ def test_padded_chunk_mirrors_a_fresh_chunk_and_keeps_the_context():
     np.testing.assert_array_equal(padded[[0, 2, 3], :, :H_context], mirrored[[0, 2, 3]])
     np.testing.assert_array_equal(padded[1, :, :H_context], 7.0)
     np.testing.assert_array_equal(context, signals[..., T - H_context - 1 : T - 1])
+
+
+# --- prognosis: the drift End of Life ---------------------------------------------------------------
+
+
+def _drift_end_of_life_numpy(value, drift, covariance, limits, t, z, diffusion):
+    """``drift_end_of_life``'s arithmetic as numpy expressions over whole arrays."""
+    upward = drift >= 0
+    limit = np.where(upward, limits[..., 1], limits[..., 0])
+    sign = np.where(upward, 1.0, -1.0)
+    margin = sign * (limit - value)
+    rate = sign * drift
+    v_tt, v_dd = covariance[..., 0, 0], covariance[..., 1, 1]
+    v_td = covariance[..., 0, 1] + 0.5 * diffusion
+    with np.errstate(divide="ignore", invalid="ignore"):
+        tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
+        a = rate**2 - z**2 * v_dd
+        b = -2.0 * rate * margin - 2.0 * z**2 * v_td
+        c = margin**2 - z**2 * v_tt
+        root = np.sqrt(np.maximum(b**2 - 4.0 * a * c, 0.0))
+        linear = -c / b
+        r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
+        small, large = np.minimum(r1, r2), np.maximum(r1, r2)
+        low = np.where(a > 0, small, np.where(a < 0, large, linear))
+        low = np.where(c <= 0, 0.0, np.maximum(low, 0.0))
+        high = np.where(a > 0, np.maximum(large, 0.0), np.inf)
+        high = np.where((margin < 0) & (c > 0), 0.0, high)
+    return np.stack([t + tau, t + low, t + high], axis=1)
+
+
+def test_drift_ends_equal_the_numpy_expressions_to_the_bit():
+    rng = _rng(9)
+    m = 4000
+    value = 100.0 + rng.normal(0.0, 8.0, m)
+    drift = rng.normal(0.0, 0.5, m)
+    drift[::7] = 0.0  # no drift: no End of Life
+    drift[1::11] = -0.0
+    root = rng.normal(0.0, 1.0, (m, 2, 2)) * np.array([2.0, 0.05])[:, None]
+    covariance = root @ root.transpose(0, 2, 1)
+    covariance[::13] = 0.0  # certain values: a = rate^2
+    covariance[5::17, 1, 1] = drift[5::17] ** 2 / 1.959963984540054**2  # a = 0 exactly where it can be
+    limits = np.column_stack([np.full(m, 90.0), np.full(m, 110.0)])
+    t = rng.uniform(0.0, 500.0, m)
+    diffusion = rng.uniform(0.0, 0.05, m)
+    z = 1.959963984540054
+    out = np.empty((m, 3))
+    drift_ends(value, drift, covariance[:, 0, 0].copy(), covariance[:, 0, 1].copy(), covariance[:, 1, 1].copy(), limits[:, 0].copy(),
+               limits[:, 1].copy(), t, diffusion, z**2, out)
+    expected = _drift_end_of_life_numpy(value, drift, covariance, limits, t, z, diffusion)
+    np.testing.assert_array_equal(out, expected)
+    assert np.isinf(out).any() and (out[:, 1] == t).any()  # the cases without an End of Life and already at the limit occur

@@ -10,6 +10,7 @@ of the step that reporting reads. Each stage keeps its own per-system state.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +18,7 @@ import numpy as np
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
-from ea_gym.energy import activity_index, window_samples
+from ea_gym.energy import activity_shares, window_samples
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import Detector
@@ -80,7 +81,7 @@ class HealthStatus:
     eol: np.ndarray
     eol_low: np.ndarray
     eol_high: np.ndarray
-    end_of_life: tuple[EndOfLife | None, ...]
+    end_of_life: Sequence[EndOfLife | None]
 
     @property
     def rul(self) -> np.ndarray:
@@ -170,9 +171,10 @@ class PHMChain:
         self.estimator.restart(fusion.restarted, fusion.isolated[fusion.restarted] - 1)
         prognosis = self.prognosis.update(estimates, fusion.isolated, fusion.confident, history.time)
         ea, ea_ref = window.ea.sum(-1), window.ea_reference.sum(-1)
+        eai, eai_ref = self._activity_index(ea, ea_ref)
         return HealthStatus(
             t=history.time.copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, sub_residual=window.ea - window.ea_reference,
-            eai=self._activity_index(ea), eai_reference=self._activity_index(ea_ref), statistic=statistic, alarm=alarm.copy(),
+            eai=eai, eai_reference=eai_ref, statistic=statistic, alarm=alarm.copy(),
             detection_time=self.detector.state.detection_time.copy(), probabilities=probabilities,
             counted=self.isolation.counted(history, alarm), diagnosis=fusion.belief, isolated=fusion.isolated,
             confidence=fusion.confidence, confident=fusion.confident, estimates=estimates.value, estimation=estimates,
@@ -180,10 +182,11 @@ class PHMChain:
             end_of_life=prognosis.end_of_life,
         )
 
-    def _activity_index(self, ea: np.ndarray) -> np.ndarray:
-        """EAI of every component from every element's EA over the step, (N, C)."""
-        components = ea[:, self.monitor.component_index].T
-        return np.stack(list(activity_index(dict(zip(self.monitor.components, components))).values()), axis=1)
+    def _activity_index(self, ea: np.ndarray, ea_reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """EAI of every component, (N, C), from every element's real and reference EA over the step (N, E), in one pass."""
+        components = np.ascontiguousarray(np.concatenate([ea, ea_reference]).T[self.monitor.component_index])
+        shares = np.ascontiguousarray(activity_shares(components, self.monitor.components).T)
+        return shares[: self.n], shares[self.n :]
 
     @property
     def statistic_names(self) -> tuple[str, ...]:

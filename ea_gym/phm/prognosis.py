@@ -15,11 +15,15 @@ Only a suspect the isolation is confident of gets one.
 from __future__ import annotations
 
 import math
+import operator
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Protocol
+from functools import cache
+from typing import Protocol, overload
 
 import numpy as np
 
+from ea_gym._kernels.prognosis import drift_ends
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.estimation import ParameterEstimates
@@ -208,35 +212,32 @@ def drift_end_of_life(
     Returns:
         eol, eol_low, eol_high (s), each (...,); inf where the limit is not approached (or not surely).
     """
-    from scipy.special import ndtri
+    covariance = np.asarray(covariance, dtype=float)
+    limits = np.asarray(limits, dtype=float)
+    inputs = np.broadcast_arrays(
+        value, drift, covariance[..., 0, 0], covariance[..., 0, 1], covariance[..., 1, 1], limits[..., 0], limits[..., 1], t, diffusion
+    )
+    shape = inputs[0].shape
+    ends = _drift_ends([np.ascontiguousarray(x, dtype=float).reshape(-1) for x in inputs], confidence)
+    return ends[:, 0].reshape(shape), ends[:, 1].reshape(shape), ends[:, 2].reshape(shape)
 
-    value, drift = np.asarray(value, dtype=float), np.asarray(drift, dtype=float)
-    limits, t = np.asarray(limits, dtype=float), np.asarray(t, dtype=float)
-    upward = drift >= 0
-    limit = np.where(upward, limits[..., 1], limits[..., 0])
-    sign = np.where(upward, 1.0, -1.0)
-    margin = sign * (limit - value)  # distance still to go, toward the limit (> 0 before it)
-    rate = sign * drift
-    v_tt, v_dd = covariance[..., 0, 0], covariance[..., 1, 1]
-    v_td = covariance[..., 0, 1] + 0.5 * np.asarray(diffusion, dtype=float)  # var(theta + drift tau) is sign-free
-    with np.errstate(divide="ignore", invalid="ignore"):
-        tau = np.where(margin <= 0, 0.0, np.where(rate > 0, margin / rate, np.inf))
-        z = float(ndtri(0.5 + 0.5 * confidence))
-        # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td
-        a = rate**2 - z**2 * v_dd
-        b = -2.0 * rate * margin - 2.0 * z**2 * v_td
-        c = margin**2 - z**2 * v_tt
-        root = np.sqrt(np.maximum(b**2 - 4.0 * a * c, 0.0))
-        linear = -c / b
-        r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
-        small, large = np.minimum(r1, r2), np.maximum(r1, r2)
-        # a > 0: both ends finite, the smaller root the low one; a < 0: the roots straddle 0, the
-        # positive one the low end and no high end
-        low = np.where(a > 0, small, np.where(a < 0, large, linear))
-        low = np.where(c <= 0, 0.0, np.maximum(low, 0.0))
-        high = np.where(a > 0, np.maximum(large, 0.0), np.inf)
-        high = np.where((margin < 0) & (c > 0), 0.0, high)  # surely past the limit already
-    return t + tau, t + low, t + high
+
+def _drift_ends(inputs: list[np.ndarray], confidence: float) -> np.ndarray:
+    """``drift_end_of_life``'s three ends (M, 3) of its inputs as 1-d float arrays (M,): value, drift, var theta,
+    cov(theta, drift), var drift, lower and upper limit, t, diffusion."""
+    ends = np.empty((len(inputs[0]), 3))
+    # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td: compiled, element by element
+    value, drift, v_tt, v_td, v_dd, lower, upper, t, diffusion = inputs
+    drift_ends(value, drift, v_tt, v_td, v_dd, lower, upper, t, diffusion, normal_quantile(0.5 + 0.5 * confidence) ** 2, ends)
+    return ends
+
+
+@cache
+def normal_quantile(p: float) -> float:
+    """The standard normal distribution's ``p`` quantile."""
+    from scipy.special import ndtri  # imported when first needed: scipy.special takes a few tenths of a second
+
+    return float(ndtri(p))
 
 
 @dataclass(frozen=True)
@@ -253,7 +254,7 @@ class Prognosis:
     eol: np.ndarray
     eol_low: np.ndarray
     eol_high: np.ndarray
-    end_of_life: tuple[EndOfLife | None, ...]
+    end_of_life: Sequence[EndOfLife | None]
 
 
 class PrognosisStage(Protocol):
@@ -371,26 +372,58 @@ class DriftPrognosis:
 
     def update(self, estimates: ParameterEstimates, isolated: np.ndarray, confident: np.ndarray, t: np.ndarray) -> Prognosis:
         """The End of Life of every confident suspect (class index ``isolated``) from its value and drift at ``t`` (s)."""
-        estimate, eol, predictions = _no_prognosis(self.n)
+        estimate, eol = np.full(self.n, np.nan), np.full((self.n, 3), math.inf)
         rows = np.flatnonzero(confident)  # no End of Life for a suspect the isolation is unsure of
-        if len(rows) == 0:
-            return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=tuple(predictions))
         d = isolated[rows] - 1
-        value, drift = estimates.value[rows, d], estimates.drift[rows, d]
-        covariance = np.stack([
-            np.stack([estimates.variance[rows, d], estimates.covariance[rows, d]], axis=-1),
-            np.stack([estimates.covariance[rows, d], estimates.drift_variance[rows, d]], axis=-1),
-        ], axis=-2)
-        stamps = estimates.time[rows, d]
-        ends = np.stack(drift_end_of_life(value, drift, covariance, self.limits[d], stamps, self.config.confidence, self.diffusion[d]), axis=1)
+        value, drift, drift_variance = estimates.value[rows, d], estimates.drift[rows, d], estimates.drift_variance[rows, d]
+        ends = _drift_ends(
+            [value, drift, estimates.variance[rows, d], estimates.covariance[rows, d], drift_variance, self.limits[d, 0], self.limits[d, 1],
+             estimates.time[rows, d], self.diffusion[d]], self.config.confidence,
+        )
+        now = t[rows]
         # as far ahead as the trend route looks: beyond the horizon, no End of Life
-        ends = np.where(ends - t[rows, None] > self.config.horizon, math.inf, ends)
+        ends = np.where(ends - now[:, None] > self.config.horizon, math.inf, ends)
         estimate[rows] = value
         eol[rows] = ends
-        for k, i in enumerate(rows):
-            limit = ("lower" if drift[k] < 0 else "upper") if math.isfinite(ends[k, 0]) else None
-            predictions[i] = EndOfLife(
-                float(t[i]), float(ends[k, 0]), float(ends[k, 1]), float(ends[k, 2]), limit, float(value[k]), float(drift[k]),
-                math.sqrt(max(float(covariance[k, 1, 1]), 0.0)), None,
-            )
-        return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=tuple(predictions))
+        predictions = DriftEndsOfLife(self.n, rows, now, ends, value, drift, drift_variance)
+        return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=predictions)
+
+
+class DriftEndsOfLife(Sequence["EndOfLife | None"]):
+    """Each of N systems' ``DriftPrognosis`` prediction, None where none, made when read (most steps nobody does).
+
+    Args:
+        n: N.
+        rows: the systems with a prediction, (M,); for each: the prediction time ``t`` (s), the End of
+            Life and interval ``ends`` (M, 3), the ``value`` and ``drift`` it starts from and the drift's variance.
+    """
+
+    def __init__(self, n: int, rows: np.ndarray, t: np.ndarray, ends: np.ndarray, value: np.ndarray, drift: np.ndarray, drift_variance: np.ndarray):
+        self._n = n
+        self._slot = dict(zip(rows.tolist(), range(len(rows))))
+        self._t, self._ends, self._value, self._drift, self._drift_variance = t, ends, value, drift, drift_variance
+
+    def __len__(self) -> int:
+        return self._n
+
+    @overload
+    def __getitem__(self, i: int) -> EndOfLife | None: ...
+
+    @overload
+    def __getitem__(self, i: slice) -> tuple[EndOfLife | None, ...]: ...
+
+    def __getitem__(self, i: int | slice) -> EndOfLife | None | tuple[EndOfLife | None, ...]:
+        if isinstance(i, slice):
+            return tuple(self[j] for j in range(*i.indices(self._n)))
+        j = operator.index(i)
+        if not -self._n <= j < self._n:
+            raise IndexError(f"system {j} out of range for {self._n} systems")
+        k = self._slot.get(j % self._n)
+        if k is None:
+            return None
+        ends, drift = self._ends[k], float(self._drift[k])
+        limit = ("lower" if drift < 0 else "upper") if math.isfinite(ends[0]) else None
+        return EndOfLife(
+            float(self._t[k]), float(ends[0]), float(ends[1]), float(ends[2]), limit, float(self._value[k]), drift,
+            math.sqrt(max(float(self._drift_variance[k]), 0.0)), None,
+        )
