@@ -13,12 +13,13 @@ from contextlib import contextmanager
 from functools import cache
 
 import scipy.linalg  # noqa: F401 - loads scipy's BLAS so that the controller sees it
-from threadpoolctl import ThreadpoolController
+from threadpoolctl import LibController, ThreadpoolController
 
 
 @cache
-def _controller() -> ThreadpoolController:
-    return ThreadpoolController()
+def _blas_controllers() -> tuple[LibController, ...]:
+    """The BLAS libraries loaded (numpy's and scipy's), found once."""
+    return tuple(ThreadpoolController().select(user_api="blas").lib_controllers)
 
 
 #: how deep each thread is in ``single_threaded_blas`` contexts
@@ -27,7 +28,8 @@ _blas_depth = threading.local()
 
 @contextmanager
 def single_threaded_blas() -> Iterator[None]:
-    """A context in which numpy's and scipy's BLAS use one thread (about 30 us to enter; nothing to
+    """A context in which numpy's and scipy's BLAS use one thread (a few us to enter: each library's
+    count is set directly, as ``threadpoolctl``'s limit sets it, without its bookkeeping; nothing to
     enter within another, as the simulation's within an environment step)."""
     depth = getattr(_blas_depth, "value", 0)
     _blas_depth.value = depth + 1
@@ -35,8 +37,15 @@ def single_threaded_blas() -> Iterator[None]:
         if depth:
             yield
         else:
-            with _controller().limit(limits=1, user_api="blas"):
+            libraries = _blas_controllers()
+            previous = [library.num_threads for library in libraries]
+            for library in libraries:
+                library.set_num_threads(1)
+            try:
                 yield
+            finally:
+                for library, threads in zip(libraries, previous):
+                    library.set_num_threads(threads)
     finally:
         _blas_depth.value = depth
 
