@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ea_gym._kernels.wear import mean_trend_rul, steady_wear
+
 
 class ProfileError(ValueError):
     """An invalid profile point; ``index`` is the culprit point's index (None for the whole profile)."""
@@ -184,15 +186,12 @@ class Wear:
 
     def advance(self, values: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """Wear the faulty components over [clock, clock + dt]; ``values`` (N, D) in parameter units."""
-        out = values.copy()
-        active = np.clip(clock + dt - np.maximum(self.arrival, clock), 0.0, dt)  # seconds of wear in the step
-        worn = np.flatnonzero(active > 0)
-        means = self.velocity[worn] * active[worn]
-        # linear wear (or none) draws nothing: one array update; the random processes draw row by row
-        drawn = ~self._linear[self.faulty[worn]] & (means != 0)
-        steady = worn[~drawn]
-        out[steady, self.faulty[steady]] += means[~drawn]
-        for i in worn[drawn]:
+        out = np.array(values, dtype=float)
+        n = len(out)
+        active, drawn = np.empty(n), np.empty(n, dtype=bool)
+        # linear wear (or none) draws nothing: compiled; the random processes draw row by row
+        steady_wear(out, self.faulty, self.arrival, self.velocity, np.asarray(clock, dtype=float), float(dt), self._linear, active, drawn)
+        for i in np.flatnonzero(drawn).tolist():
             rng = rngs[i]
             d = self.faulty[i]
             config, mean = self.configs[d], self.velocity[i] * active[i]
@@ -209,9 +208,6 @@ class Wear:
 
     def true_rul(self, values: np.ndarray, clock: np.ndarray) -> np.ndarray:
         """Time (s) until the faulty component's mean trend reaches its limit; inf before the fault arrives."""
-        d = self.faulty
-        current = values[np.arange(len(d)), d]
-        limit = np.where(self.velocity > 0, self.limits[d, 1], self.limits[d, 0])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            rul = np.where(self.velocity != 0, (limit - current) / self.velocity, np.inf)
-        return np.where(clock >= self.arrival, np.maximum(rul, 0.0), np.inf)
+        rul = np.empty(len(values))
+        mean_trend_rul(np.asarray(values, dtype=float), self.faulty, self.limits, self.velocity, self.arrival, np.asarray(clock, dtype=float), rul)
+        return rul

@@ -1,19 +1,25 @@
 """Every compiled kernel of ``ea_gym._kernels`` against a plain numpy (or scipy) form of the same arithmetic."""
 
+import math
+
 import numpy as np
 import pytest
 from scipy import linalg
 from scipy.signal import savgol_filter
 
 from ea_gym._kernels.activity import interval_activities, trapezoid_activity, trapezoid_area
+from ea_gym._kernels.detection import detect, numpy_sum
 from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, solve
 from ea_gym._kernels.monitor import chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
 from ea_gym._kernels.prognosis import drift_ends
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym._kernels.smoothing import LANES, filter_into, filter_lanes, filter_rows
+from ea_gym._kernels.wear import mean_trend_rul, steady_wear
 from ea_gym.bondgraph.simulation import hermite_coefficients
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
+from ea_gym.numerics import TINY
+from ea_gym.phm.detection import relative_residuals
 
 H = 0.01  # sample period (s)
 
@@ -316,3 +322,106 @@ def test_drift_ends_equal_the_numpy_expressions_to_the_bit():
     expected = _drift_end_of_life_numpy(value, drift, covariance, limits, t, z, diffusion)
     np.testing.assert_array_equal(out, expected)
     assert np.isinf(out).any() and (out[:, 1] == t).any()  # the cases without an End of Life and already at the limit occur
+
+
+# --- detection: numpy's sums, the statistic and the alarm ------------------------------------------
+
+
+@pytest.mark.parametrize("n", [1, 7, 8, 9, 50, 127, 128, 129, 300, 1000, 4099])
+def test_numpy_sum_is_ndarray_sum_to_the_bit(n):
+    rng = _rng(n)
+    for _ in range(20):
+        a = rng.standard_normal(n + 5) * 10.0 ** rng.uniform(-6, 6, n + 5)
+        assert numpy_sum(a, 3, n) == a[3 : 3 + n].sum()
+    assert math.copysign(1.0, numpy_sum(np.array([-0.0]), 0, 1)) == math.copysign(1.0, np.array([-0.0]).sum())
+
+
+def _detect_numpy(ea, ea_reference, window, balance, dissipated, steps, step_samples, span_samples, thresholds, persistence, time, state):
+    """``Detector.update``'s arithmetic as numpy expressions; ``state`` (above, alarm, detection_time) updated in place."""
+    statistic = relative_residuals(ea[..., -window:].sum(-1), ea_reference[..., -window:].sum(-1), balance.sum(-1), dissipated.sum(-1))
+    statistic = np.where((steps * step_samples)[:, None] >= span_samples, statistic, 0.0)
+    above, alarm, detection_time = state
+    exceeded = np.any(np.abs(statistic) > thresholds, axis=1)
+    above[:] = np.where(exceeded, above + 1, 0)
+    new_alarm = ~alarm & (above >= persistence)
+    detection_time[:] = np.where(new_alarm, time, detection_time)
+    alarm |= new_alarm
+    return statistic
+
+
+def test_detect_equals_the_numpy_statistic_and_alarm_to_the_bit():
+    rng = _rng(11)
+    n, elements, subs, balances, window = 40, 5, 120, 60, 50
+    # windows on longer arrays, as the history keeps them
+    ea = rng.uniform(0.0, 2.0, (n, elements, 2 * subs))[..., 7 : 7 + subs]
+    ea_reference = (ea * rng.normal(1.0, 0.05, ea.shape)).copy()[..., :]
+    ea_reference[3] = 0.0  # a system at rest: the floor of the denominator
+    balance = rng.normal(0.0, 0.01, (n, 2 * balances))[:, 11 : 11 + balances]
+    dissipated = rng.uniform(0.0, 1.0, (n, 2 * balances))[:, 3 : 3 + balances]
+    steps = rng.integers(0, 80, n)
+    span_samples = np.append(np.full(elements, window * 10), balances * 100)
+    thresholds = rng.uniform(0.01, 0.1, elements + 1)
+    time = rng.uniform(0.0, 100.0, n)
+    above = rng.integers(0, 4, n)
+    alarm = rng.random(n) < 0.3
+    detection_time = np.where(alarm, 1.0, np.nan)
+    expected_state = (above.copy(), alarm.copy(), detection_time.copy())
+    expected = _detect_numpy(ea, ea_reference, window, balance, dissipated, steps, 100, span_samples, thresholds, 3, time, expected_state)
+    statistic = np.empty((n, elements + 1))
+    detect(
+        ea, ea_reference, window, balance, dissipated, steps, 100, span_samples, thresholds, 3, time, TINY, above, alarm, detection_time, statistic
+    )
+    np.testing.assert_array_equal(statistic, expected)
+    for got, want in zip((above, alarm, detection_time), expected_state):
+        np.testing.assert_array_equal(got, want)
+    assert expected_state[1].sum() > alarm.sum() - expected_state[1].sum() >= 0 and (expected_state[0] == 0).any()
+
+
+# --- wear: the linear part of a step and the true RUL ------------------------------------------------
+
+
+def _wear_case(seed: int):
+    rng = _rng(seed)
+    n, d = 300, 3
+    values = rng.uniform(0.5, 1.5, (n, d))
+    faulty = rng.integers(0, d, n)
+    clock = rng.uniform(0.0, 100.0, n)
+    arrival = clock + rng.uniform(-5.0, 3.0, n)
+    arrival[::9] = np.inf  # no fault yet
+    velocity = rng.normal(0.0, 0.01, n)
+    velocity[::7] = 0.0
+    limits = np.array([[0.2, 1.8], [0.4, 1.6], [0.1, 1.9]])
+    return values, faulty, clock, arrival, velocity, limits
+
+
+def test_steady_wear_equals_the_numpy_step_to_the_bit():
+    values, faulty, clock, arrival, velocity, _ = _wear_case(12)
+    linear = np.array([True, False, True])
+    dt = 1.0
+    active = np.clip(clock + dt - np.maximum(arrival, clock), 0.0, dt)
+    worn = np.flatnonzero(active > 0)
+    means = velocity[worn] * active[worn]
+    random = ~linear[faulty[worn]] & (means != 0)
+    expected = values.copy()
+    steady = worn[~random]
+    expected[steady, faulty[steady]] += means[~random]
+    out, seconds, drawn = values.copy(), np.empty(len(values)), np.empty(len(values), dtype=bool)
+    steady_wear(out, faulty, arrival, velocity, clock, dt, linear, seconds, drawn)
+    np.testing.assert_array_equal(out, expected)
+    np.testing.assert_array_equal(seconds, active)
+    np.testing.assert_array_equal(np.flatnonzero(drawn), worn[random])
+    assert drawn.any() and len(steady) > 0
+
+
+def test_mean_trend_rul_equals_the_numpy_formula_to_the_bit():
+    values, faulty, clock, arrival, velocity, limits = _wear_case(13)
+    values[::5, :] = 2.0  # past the upper limits: RUL 0 where heading up
+    current = values[np.arange(len(faulty)), faulty]
+    limit = np.where(velocity > 0, limits[faulty, 1], limits[faulty, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        rul = np.where(velocity != 0, (limit - current) / velocity, np.inf)
+    expected = np.where(clock >= arrival, np.maximum(rul, 0.0), np.inf)
+    out = np.empty(len(values))
+    mean_trend_rul(values, faulty, limits, velocity, arrival, clock, out)
+    np.testing.assert_array_equal(out, expected)
+    assert np.isinf(out).any() and (out == 0).any() and np.isfinite(out).any()

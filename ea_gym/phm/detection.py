@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 
+from ea_gym._kernels.detection import detect
 from ea_gym.diagnosis.database import draw_loads
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
@@ -120,23 +121,16 @@ class Detector:
         self.span_samples = np.append(np.full(len(monitor.elements), self.window_subs * monitor.n_sub), self.balance_steps * self.step_samples)
         self.state = DetectionState.new(n_systems)
 
-    def statistic(self, history: MonitorHistory) -> np.ndarray:
-        """Relative EA residual of every element and relative energy-balance residual over the detection window, (N, E + 1)."""
-        statistic = relative_residuals(
-            history.ea[..., -self.window_subs :].sum(-1), history.ea_reference[..., -self.window_subs :].sum(-1),
-            history.balance.sum(-1), history.dissipated.sum(-1),
-        )
-        return np.where((history.steps * self.step_samples)[:, None] >= self.span_samples, statistic, 0.0)
-
     def update(self, history: MonitorHistory) -> np.ndarray:
-        """The statistic (N, E + 1) after the newest step; raises the alarm of systems above threshold long enough."""
+        """The statistic (N, E + 1) after the newest step: relative EA residual of every element and relative
+        energy-balance residual over the detection window (``relative_residuals``, 0 until its window is
+        full); raises the alarm of systems above threshold long enough. Compiled, numpy's sums to the bit."""
         s = self.state
-        statistic = self.statistic(history)
-        above = np.any(np.abs(statistic) > self.thresholds, axis=1)
-        s.above[:] = np.where(above, s.above + 1, 0)
-        new_alarm = ~s.alarm & (s.above >= self.config.persistence)
-        s.detection_time[:] = np.where(new_alarm, history.time, s.detection_time)
-        s.alarm |= new_alarm
+        statistic = np.empty((len(history.time), len(self.thresholds)))
+        detect(
+            history.ea, history.ea_reference, self.window_subs, history.balance, history.dissipated, history.steps, self.step_samples,
+            self.span_samples, self.thresholds, self.config.persistence, history.time, TINY, s.above, s.alarm, s.detection_time, statistic,
+        )
         return statistic
 
 

@@ -1,0 +1,48 @@
+"""The wear of N systems' faulty components over a step, and their true RUL (``ea_gym.degradation.Wear``), in
+compiled loops: the arithmetic of its numpy form, element by element in the same order, so to the bit.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+
+@numba.njit(cache=True)
+def steady_wear(
+    values: np.ndarray, faulty: np.ndarray, arrival: np.ndarray, velocity: np.ndarray, clock: np.ndarray, dt: float, linear: np.ndarray,
+    active: np.ndarray, drawn: np.ndarray,
+) -> None:
+    """Each system's seconds of wear in [clock, clock + dt] (after its fault's ``arrival``) into ``active``
+    (N,); the mean drift velocity x active added to its faulty component's value (``values`` (N, D), in
+    place) where the wear is linear or the mean is 0; ``drawn`` (N,): the systems whose increment is
+    random instead (left to the caller, which draws it from the system's generator)."""
+    for m in range(values.shape[0]):
+        start = arrival[m] if (arrival[m] >= clock[m] or math.isnan(arrival[m])) else clock[m]  # np.maximum
+        seconds = clock[m] + dt - start
+        seconds = seconds if (seconds > 0.0 or math.isnan(seconds)) else 0.0  # np.clip(., 0, dt), NaN kept
+        seconds = seconds if (seconds < dt or math.isnan(seconds)) else dt
+        active[m] = seconds
+        drawn[m] = False
+        if seconds > 0:
+            mean = velocity[m] * seconds
+            if not linear[faulty[m]] and mean != 0:
+                drawn[m] = True
+            else:
+                values[m, faulty[m]] += mean
+
+
+@numba.njit(cache=True, error_model="numpy")
+def mean_trend_rul(
+    values: np.ndarray, faulty: np.ndarray, limits: np.ndarray, velocity: np.ndarray, arrival: np.ndarray, clock: np.ndarray, out: np.ndarray
+) -> None:
+    """Seconds (N,) until each faulty component's mean trend reaches the limit it heads for, 0 past it,
+    inf before its fault arrives or without drift; ``values`` (N, D), ``limits`` (D, 2)."""
+    for m in range(values.shape[0]):
+        d = faulty[m]
+        limit = limits[d, 1] if velocity[m] > 0 else limits[d, 0]
+        rul = (limit - values[m, d]) / velocity[m] if velocity[m] != 0 else math.inf
+        rul = rul if (rul >= 0.0 or math.isnan(rul)) else 0.0  # np.maximum(rul, 0.0)
+        out[m] = rul if clock[m] >= arrival[m] else math.inf
