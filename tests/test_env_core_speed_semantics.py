@@ -101,6 +101,19 @@ def test_unique_rows_maps_every_row_to_an_identical_one():
     np.testing.assert_array_equal(one[index], theta[:1])
 
 
+def test_unique_rows_of_a_few_rows_are_those_of_np_unique_in_its_order():
+    rng = np.random.default_rng(4)
+    for n in range(2, 12):  # both sides of the few rows sorted in Python
+        for _ in range(50):
+            theta = rng.standard_normal((n, 3)) * rng.choice([-1.0, 1.0, 0.0], (n, 3))
+            theta[rng.integers(0, n)] = theta[0]
+            keys = theta.view(np.dtype((np.void, theta.itemsize * 3))).ravel()
+            _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+            distinct, index = unique_rows(theta)
+            np.testing.assert_array_equal(distinct, theta[first])
+            np.testing.assert_array_equal(index, inverse.reshape(n))
+
+
 def _plain_powers(monitor: Monitor, signals, start):
     """Monitor.powers as it was: whole-signal filtering, einsum output map, dict of element powers."""
     smooth = monitor.filter(signals)[..., start:]

@@ -21,6 +21,8 @@ from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym.bondgraph.equations import StateSpaceModel
 from ea_gym.threads import single_threaded_blas
 
+#: Batches of up to so many parameter rows are sorted in Python (a single environment's plant and reference).
+FEW_ROWS = 8
 #: Polynomial pieces per sample interval of the input: u(s) = sum_j w_j s^j / j!, j = 0..3.
 HOLD_ORDER = 4
 
@@ -220,6 +222,11 @@ def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = len(theta)
     if n <= 1:
         return theta, np.zeros(n, dtype=np.intp)
+    if n <= FEW_ROWS:  # np.unique's order (its void rows compare as their bytes do), without its sort's overhead
+        keys = [row.tobytes() for row in theta]
+        order = sorted(set(keys))
+        slot = {key: j for j, key in enumerate(order)}
+        return theta[[keys.index(key) for key in order]], np.array([slot[key] for key in keys], dtype=np.intp)
     keys = theta.view(np.dtype((np.void, theta.dtype.itemsize * theta.shape[1]))).ravel()
     _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     return theta[first], inverse.reshape(n)

@@ -254,6 +254,7 @@ class TrackingEstimator:
         self.P = np.zeros((n_systems, len(nominal), nx + 2, nx + 2))
         self.log_likelihood = np.zeros((n_systems, len(nominal)))
         self.started = np.zeros(n_systems, dtype=bool)
+        self._systems = np.arange(n_systems)  # every row, as the kernel takes the rows it runs
         self.clock = np.zeros(n_systems)  # the time (s) the filters describe, the end of the last step
         self.lag = 0.0  # its estimates describe the step's end
         self.warmup_steps = 0  # and come from the first step on
@@ -281,7 +282,7 @@ class TrackingEstimator:
 
     def measurement_variance(self, measured: np.ndarray) -> np.ndarray:
         """Each channel's noise variance (N, nx): noise^2 x its clean RMS^2, from the noisy RMS over the step."""
-        mean_square = np.mean(measured**2, axis=-1)
+        mean_square = (measured**2).sum(axis=-1) / measured.shape[-1]  # np.mean's arithmetic, without its wrapper
         # a channel at rest (zero signal, so zero noise) is exact; the floor keeps its update defined
         return np.maximum(self.noise**2 * mean_square / (1.0 + self.noise**2), VARIANCE_FLOOR)
 
@@ -315,21 +316,21 @@ class TrackingEstimator:
         variance = self.measurement_variance(measured)
         t = np.asarray(signals.t, dtype=float)
         running = self.started.copy()  # the filters that ran before this step
-        fresh = np.flatnonzero(~running)
-        if len(fresh):
+        if not running.all():
+            fresh = np.flatnonzero(~running)
             self.start(fresh, measured[fresh], variance[fresh])
         # a step may stand for more (degradation) time than its signals last (the environment's
         # step_seconds > window): the plant's parameters then hold over each window and move between
         # windows, so the filters carry theta over the step's whole span before its signals, not within
-        span = np.where(running, t - self.clock, 0.0)
-        held = span > (measured.shape[2] - 1) * self.h * (1.0 + 1e-9)
-        if np.any(held):
+        span = t - self.clock
+        held = running & (span > (measured.shape[2] - 1) * self.h * (1.0 + 1e-9))
+        if held.any():
             self.advance_clock(np.where(held, span, 0.0))
         self.clock = t.copy()
         hyp = self.hypotheses
         track(
             hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
-            np.where(held, 0.0, self.h), np.arange(n), measured, np.ascontiguousarray(signals.load, dtype=float),
+            np.where(held, 0.0, self.h), self._systems, measured, np.ascontiguousarray(signals.load, dtype=float),
             np.ascontiguousarray(signals.load_rate, dtype=float), variance, self.z, self.P, self.log_likelihood,
         )
         return self.estimates(t)
