@@ -8,10 +8,11 @@ from scipy import linalg
 from scipy.signal import savgol_filter
 
 from ea_gym._kernels.activity import interval_activities, trapezoid_activity, trapezoid_area
-from ea_gym._kernels.detection import detect, numpy_sum
+from ea_gym._kernels.detection import detect
 from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, solve
 from ea_gym._kernels.monitor import chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
+from ea_gym._kernels.numpy_forms import numpy_sum
 from ea_gym._kernels.prognosis import drift_ends
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym._kernels.smoothing import LANES, filter_into, filter_lanes, filter_rows

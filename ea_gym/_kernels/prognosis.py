@@ -12,17 +12,7 @@ import math
 import numba
 import numpy as np
 
-
-@numba.njit(cache=True, inline="always")
-def numpy_minimum(a: float, b: float) -> float:
-    """``np.minimum(a, b)``: NaN if either is, otherwise the smaller (a where they compare equal)."""
-    return a if (a <= b or math.isnan(a)) else b
-
-
-@numba.njit(cache=True, inline="always")
-def numpy_maximum(a: float, b: float) -> float:
-    """``np.maximum(a, b)``: NaN if either is, otherwise the larger (a where they compare equal)."""
-    return a if (a >= b or math.isnan(a)) else b
+from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -9,6 +9,8 @@ import math
 import numba
 import numpy as np
 
+from ea_gym._kernels.numpy_forms import numpy_maximum
+
 
 @numba.njit(cache=True)
 def steady_wear(
@@ -20,7 +22,7 @@ def steady_wear(
     place) where the wear is linear or the mean is 0; ``drawn`` (N,): the systems whose increment is
     random instead (left to the caller, which draws it from the system's generator)."""
     for m in range(values.shape[0]):
-        start = arrival[m] if (arrival[m] >= clock[m] or math.isnan(arrival[m])) else clock[m]  # np.maximum
+        start = numpy_maximum(arrival[m], clock[m])
         seconds = clock[m] + dt - start
         seconds = seconds if (seconds > 0.0 or math.isnan(seconds)) else 0.0  # np.clip(., 0, dt), NaN kept
         seconds = seconds if (seconds < dt or math.isnan(seconds)) else dt
@@ -44,5 +46,5 @@ def mean_trend_rul(
         d = faulty[m]
         limit = limits[d, 1] if velocity[m] > 0 else limits[d, 0]
         rul = (limit - values[m, d]) / velocity[m] if velocity[m] != 0 else math.inf
-        rul = rul if (rul >= 0.0 or math.isnan(rul)) else 0.0  # np.maximum(rul, 0.0)
+        rul = numpy_maximum(rul, 0.0)
         out[m] = rul if clock[m] >= arrival[m] else math.inf
