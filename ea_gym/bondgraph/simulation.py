@@ -223,10 +223,10 @@ def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     if n <= 1:
         return theta, np.zeros(n, dtype=np.intp)
     if n <= FEW_ROWS:  # np.unique's order (its void rows compare as their bytes do), without its sort's overhead
-        keys = [row.tobytes() for row in theta]
-        order = sorted(set(keys))
-        slot = {key: j for j, key in enumerate(order)}
-        return theta[[keys.index(key) for key in order]], np.array([slot[key] for key in keys], dtype=np.intp)
+        rows = [row.tobytes() for row in theta]
+        order = sorted(set(rows))
+        slot = {row: j for j, row in enumerate(order)}
+        return theta[[rows.index(row) for row in order]], np.array([slot[row] for row in rows], dtype=np.intp)
     keys = theta.view(np.dtype((np.void, theta.dtype.itemsize * theta.shape[1]))).ravel()
     _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
     return theta[first], inverse.reshape(n)
