@@ -5,10 +5,10 @@ import warnings
 import numpy as np
 import pytest
 
-from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.diagnosis.monitor import Monitor, MonitorWindow
 from ea_gym.models import rlc_circuit, spring_mass_damper
 from ea_gym.phm.estimation import push_median
-from ea_gym.phm.history import push_window
+from ea_gym.phm.history import MonitorHistory, push_window
 from ea_gym.phm.inversion import EAInversion
 
 
@@ -150,3 +150,40 @@ def test_pushed_history_equals_concatenating_and_dropping():
                 buffer[1] = expected[1] = rng.standard_normal((2, length))
         buffer = push_window(buffer.copy(), new)  # a plain array again
         np.testing.assert_array_equal(buffer, np.concatenate([expected, new], axis=-1)[..., k:])
+
+
+def test_recorded_history_equals_the_numpy_sums_pushed():
+    """``MonitorHistory.record`` (compiled sums, windows slid from their kept starts) gives what pushing
+    numpy's sums of every step gives, through the windows' moves back, resets and a replaced field."""
+    rng = np.random.default_rng(9)
+    n, elements, subs, windows, components, states = 5, 4, 10, 10, 3, 2
+    dissipators = np.array([1, 3])
+    history = MonitorHistory.new(n, elements, components, states, subs=3 * subs, frame_steps=3, regression_steps=4, balance_steps=6,
+                                 evidence_steps=5)
+    expected = MonitorHistory.new(n, elements, components, states, subs=3 * subs, frame_steps=3, regression_steps=4, balance_steps=6,
+                                  evidence_steps=5)
+    for step in range(25):
+        window = MonitorWindow(
+            ea=rng.uniform(0, 1, (n, elements, subs)), ea_reference=rng.uniform(0, 1, (n, elements, subs)),
+            gram=rng.standard_normal((n, windows, components, components)), cross=rng.standard_normal((n, windows, components)),
+            balance=rng.standard_normal((n, windows)) * 10.0 ** rng.uniform(-3, 3, (n, windows)), signals=np.empty(0),
+            noise=rng.uniform(0, 1, (n, 2, states)),
+        )
+        history.record(window, 0.5, dissipators)
+        e = expected
+        e.time, e.steps = e.time + 0.5, e.steps + 1
+        e.ea, e.ea_reference = push_window(e.ea, window.ea), push_window(e.ea_reference, window.ea_reference)
+        e.gram = push_window(e.gram, window.gram.sum(axis=1)[..., None])
+        e.cross = push_window(e.cross, window.cross.sum(axis=1)[..., None])
+        e.balance = push_window(e.balance, window.balance.sum(-1)[:, None])
+        e.balance_square = push_window(e.balance_square, (window.balance**2).sum(-1)[:, None])
+        e.dissipated = push_window(e.dissipated, window.ea_reference[:, dissipators].sum((1, 2))[:, None])
+        e.noise = push_window(e.noise, window.noise[..., None])
+        for name in ("time", "steps", "ea", "ea_reference", "gram", "cross", "balance", "balance_square", "dissipated", "noise"):
+            np.testing.assert_array_equal(getattr(history, name), getattr(e, name), err_msg=name)
+        if step == 7:
+            mask = np.arange(n) % 2 == 0
+            history.reset(mask)
+            e.reset(mask)
+        if step == 12:
+            history.balance = history.balance.copy()  # a field replaced: no longer the kept window

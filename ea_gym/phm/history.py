@@ -9,10 +9,12 @@ at every step.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
+from ea_gym._kernels.history import step_sums
 from ea_gym.diagnosis.monitor import MonitorWindow
 
 
@@ -29,20 +31,31 @@ def push_window(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
     array's end are its entries moved back to the start. The history is then copied once per
     buffer length's worth of pushes instead of at every push, and no array is allocated.
     """
-    k, T = new.shape[-1], buffer.shape[-1]
+    T = buffer.shape[-1]
     backing = buffer.base
     if backing is None or not _is_window(buffer, backing):
         backing = np.empty(buffer.shape[:-1] + (2 * T,), dtype=buffer.dtype)
         backing[..., :T] = buffer
         buffer = backing[..., :T]
-    start = (buffer.ctypes.data - backing.ctypes.data) // buffer.itemsize + k
+    return slide_window(backing, window_start(buffer, backing), buffer, new)[0]
+
+
+def window_start(window: np.ndarray, backing: np.ndarray) -> int:
+    """Where a window ``push_window`` keeps starts on its ``backing`` array's last axis."""
+    return (window.ctypes.data - backing.ctypes.data) // window.itemsize
+
+
+def slide_window(backing: np.ndarray, start: int, window: np.ndarray, new: np.ndarray) -> tuple[np.ndarray, int]:
+    """``push_window`` on the window at ``start`` on ``backing``'s last axis: the new window and its start."""
+    k, T = new.shape[-1], window.shape[-1]
+    start += k
     if start + T > backing.shape[-1]:
         # the entries kept lie past T - k, clear of where they go: no overlap
-        backing[..., : T - k] = buffer[..., k:]
+        backing[..., : T - k] = window[..., k:]
         start = 0
-    window = backing[..., start : start + T]
-    window[..., T - k :] = new
-    return window
+    moved = backing[..., start : start + T]
+    moved[..., T - k :] = new
+    return moved, start
 
 
 def _is_window(buffer: np.ndarray, backing: np.ndarray) -> bool:
@@ -81,6 +94,7 @@ class MonitorHistory:
     balance_square: np.ndarray
     dissipated: np.ndarray
     noise: np.ndarray
+    _starts: dict[str, tuple[np.ndarray, np.ndarray, int]] = field(default_factory=dict, init=False, repr=False, compare=False)
 
     @classmethod
     def new(cls, n: int, elements: int, components: int, states: int, subs: int, frame_steps: int, regression_steps: int,
@@ -108,12 +122,27 @@ class MonitorHistory:
         """Append one step's monitor outputs; ``dissipators``: the element indices of the dissipators."""
         self.time = self.time + step_time
         self.steps = self.steps + 1
-        self.ea = push_window(self.ea, window.ea)
-        self.ea_reference = push_window(self.ea_reference, window.ea_reference)
+        n, components = window.cross.shape[0], window.cross.shape[2]
         # the isolation frame and the balance evidence need only their sums: one entry per step
-        self.gram = push_window(self.gram, window.gram.sum(axis=1)[..., None])
-        self.cross = push_window(self.cross, window.cross.sum(axis=1)[..., None])
-        self.balance = push_window(self.balance, window.balance.sum(-1)[:, None])
-        self.balance_square = push_window(self.balance_square, (window.balance**2).sum(-1)[:, None])
-        self.dissipated = push_window(self.dissipated, window.ea_reference[:, dissipators].sum((1, 2))[:, None])
-        self.noise = push_window(self.noise, window.noise[..., None])
+        gram, cross = np.empty((n, components, components, 1)), np.empty((n, components, 1))
+        balance, balance_square, dissipated = np.empty((n, 1)), np.empty((n, 1)), np.empty((n, 1))
+        step_sums(window.gram, window.cross, window.balance, window.ea_reference, dissipators, gram, cross, balance, balance_square, dissipated)
+        for name, new in (
+            ("ea", window.ea), ("ea_reference", window.ea_reference), ("gram", gram), ("cross", cross), ("balance", balance),
+            ("balance_square", balance_square), ("dissipated", dissipated), ("noise", window.noise[..., None]),
+        ):
+            self._push(name, new)
+
+    def _push(self, name: str, new: np.ndarray) -> None:
+        """``push_window`` on the history ``name``, its window's start kept from the last push (while it is that window)."""
+        current = getattr(self, name)
+        known = self._starts.get(name)
+        if known is not None and known[0] is current:
+            backing = known[1]
+            moved, start = slide_window(backing, known[2], current, new)
+        else:
+            moved = push_window(current, new)
+            backing = cast(np.ndarray, moved.base)  # push_window's result is a window on its backing array
+            start = window_start(moved, backing)
+        self._starts[name] = (moved, backing, start)
+        setattr(self, name, moved)
