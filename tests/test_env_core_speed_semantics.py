@@ -8,6 +8,7 @@ import ea_gym  # noqa: F401 - registers the environments
 from ea_gym._kernels.propagation import simulate_hermite
 from ea_gym.bondgraph.simulation import (
     Discretization,
+    LastDiscretization,
     discretize,
     hermite_coefficients,
     propagate,
@@ -88,6 +89,28 @@ def test_measured_simulation_is_the_states_times_the_gains_in_the_sensors_layout
     simulate_measured(space, 0.01, u, du, theta, x0, gain, out=wider[:, :-1])
     np.testing.assert_array_equal(wider[:, :-1], signals)
     assert np.isnan(wider[:, -1]).all()
+
+
+def test_the_last_discretization_is_reused_for_the_same_rows_only():
+    model = get_model("spring_mass_damper")
+    space = model.state_space
+    rng = np.random.default_rng(5)
+    n, samples = 4, 30
+    nominal = np.repeat(model.parameter_vector()[None], n, axis=0)
+    worn = nominal.copy()
+    worn[1, 1] *= 1.01
+    u, du = rng.standard_normal((2, n, samples, 1))
+    x0 = rng.standard_normal((n, space.n_states))
+    gain = rng.uniform(0.5, 2.0, (n, space.n_states))
+    last_step = LastDiscretization()
+    for theta in (nominal, nominal.copy(), worn, worn.copy(), nominal):
+        expected = simulate_measured(space, 0.01, u, du, theta, x0, gain)
+        kept = last_step.of(space, 0.01, unique_rows(theta)[0])
+        got = simulate_measured(space, 0.01, u, du, theta, x0, gain, last_step=last_step)
+        for a, b in zip(got, expected):
+            np.testing.assert_array_equal(a, b)
+        assert (kept is not None) == (theta is not nominal and theta is not worn)  # the copies come after their equals
+    assert last_step.of(space, 0.02, unique_rows(nominal)[0]) is None  # another sample period
 
 
 def test_unique_rows_maps_every_row_to_an_identical_one():

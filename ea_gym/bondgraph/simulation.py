@@ -250,6 +250,29 @@ def simulate_batch(
     return np.ascontiguousarray(states.transpose(0, 2, 1))
 
 
+class LastDiscretization:
+    """The discretization of the distinct parameter rows of one ``simulate_measured`` call, for the next.
+
+    Rows are compared bit for bit (as ``unique_rows`` does), so a reused discretization is the one the
+    call would compute.
+    """
+
+    def __init__(self) -> None:
+        self._key: tuple[StateSpaceModel, float, bytes] | None = None
+        self._step: Discretization | None = None
+
+    def of(self, model: StateSpaceModel, sample_period: float, distinct: np.ndarray) -> Discretization | None:
+        """The kept discretization if it is of ``distinct`` (and ``model``, ``sample_period``), else None."""
+        key = self._key
+        if key is None or key[0] is not model or key[1] != sample_period or key[2] != distinct.tobytes():
+            return None
+        return self._step
+
+    def keep(self, model: StateSpaceModel, sample_period: float, distinct: np.ndarray, step: Discretization) -> None:
+        """Keep ``step``, the discretization of the rows ``distinct`` (k, P)."""
+        self._key, self._step = (model, sample_period, distinct.tobytes()), step
+
+
 def simulate_measured(
     model: StateSpaceModel,
     sample_period: float,
@@ -259,6 +282,7 @@ def simulate_measured(
     x0: np.ndarray,
     gain: np.ndarray,
     out: np.ndarray | None = None,
+    last_step: LastDiscretization | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``simulate_batch`` measured through diagonal measurement matrices, in the sensors' layout.
 
@@ -266,6 +290,8 @@ def simulate_measured(
         u, du, theta, x0: as for ``simulate_batch``.
         gain: each system's measurement gain per state, (N, nx) (``Monitor.measurement_gain``).
         out: where to write the signals, (N, nx, T + 1); None: a new array.
+        last_step: the discretization of the previous call's distinct parameter rows, reused when this
+            call's are the same (a healthy batch's, step after step), and replaced when they are not.
 
     Returns:
         the signals gain x at every sample, (N, nx, T + 1), equal to the states of ``simulate_batch``
@@ -282,8 +308,12 @@ def simulate_measured(
     last = np.empty((n, nx))
     with single_threaded_blas():
         distinct, index = unique_rows(theta)
-        mats = model.matrices(distinct)
-        step = discretize(mats.A, mats.B, sample_period)
+        step = None if last_step is None else last_step.of(model, sample_period, distinct)
+        if step is None:
+            mats = model.matrices(distinct)
+            step = discretize(mats.A, mats.B, sample_period)
+            if last_step is not None:
+                last_step.keep(model, sample_period, distinct, step)
         simulate_hermite(
             np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma), index, np.ascontiguousarray(u),
             np.ascontiguousarray(du), float(sample_period), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float), signals, last,

@@ -155,7 +155,7 @@ class MaintenanceCore:
     def _step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
         actions = np.asarray(actions)
         n_actions = len(self.actions)
-        if actions.shape != (self.n,) or not np.issubdtype(actions.dtype, np.integer) or np.any((actions < 0) | (actions >= n_actions)):
+        if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or np.any((actions < 0) | (actions >= n_actions)):
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
         c, dt = self.config.costs, self.config.step_seconds
         costs = {key: np.zeros(self.n) for key in COST_ITEMS[:-1]}
@@ -218,6 +218,8 @@ class MaintenanceCore:
         low, high = self.limits[:, 0], self.limits[:, 1]
         values = self._theta[:, self._component_index]
         failed = running & np.any((values < low) | (values > high), axis=1)
+        if not failed.any():
+            return failed
         broken = np.flatnonzero(failed)
         costs["failure"][broken] += self.config.costs.failure
         culprits = np.argmax(np.maximum(low - values[broken], values[broken] - high), axis=1)

@@ -131,7 +131,8 @@ class Observer:
             obs["parameter_estimate"] = self.position(merged["estimates"])
             obs["rul"] = merged["rul"]
         if "rul" in obs:
-            obs["rul"] = np.clip(np.nan_to_num(obs["rul"], nan=config.rul_max, posinf=config.rul_max), 0.0, config.rul_max)
+            # NaN and inf read as the longest RUL, -inf as none (np.nan_to_num's mapping, then the clip)
+            obs["rul"] = np.clip(np.where(np.isnan(obs["rul"]), config.rul_max, obs["rul"]), 0.0, config.rul_max)
         obs["time_since_maintenance"] = np.minimum(obs["time_since_maintenance"], self.longest_run)
         # clipped and cast side by side in one array (a few numpy calls instead of two per key); each key a view on it
         joined = np.concatenate(list(obs.values()), axis=1)

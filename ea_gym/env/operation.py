@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ea_gym.bondgraph.simulation import simulate_measured
+from ea_gym.bondgraph.simulation import LastDiscretization, simulate_measured
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
@@ -111,6 +111,7 @@ class Operation:
         self.plant = np.zeros((n_systems, nx))  # energy variables at the end of the last window
         self.reference = np.zeros((n_systems, nx))
         self.elapsed = np.zeros(n_systems)  # operation time (s): the load's clock
+        self._last_step = LastDiscretization()  # a healthy batch's parameters repeat from step to step
 
     def start(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         """New episodes for the systems in ``mask``: at rest, a new load."""
@@ -138,7 +139,7 @@ class Operation:
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
         gain = self.monitor.measurement_gain(theta)
         x0 = np.concatenate([self.plant, self.reference])
-        signals, last = simulate_measured(self.model.state_space, self.h, loads, rates, theta, x0, gain)
+        signals, last = simulate_measured(self.model.state_space, self.h, loads, rates, theta, x0, gain, last_step=self._last_step)
         self.plant, self.reference = last[:n], last[n:]
         self.elapsed = self.elapsed + self.window
         return Window(measured=self.sensor_noise(signals[:n], rngs), expected=signals[n:], load=u, load_rate=du)
