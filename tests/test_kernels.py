@@ -13,7 +13,7 @@ from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, so
 from ea_gym._kernels.monitor import chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
 from ea_gym._kernels.numpy_forms import numpy_sum
-from ea_gym._kernels.prognosis import drift_ends
+from ea_gym._kernels.prognosis import drift_ends, drift_prognosis
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym._kernels.smoothing import LANES, filter_into, filter_lanes, filter_rows
 from ea_gym._kernels.wear import mean_trend_rul, steady_wear
@@ -426,3 +426,32 @@ def test_mean_trend_rul_equals_the_numpy_formula_to_the_bit():
     mean_trend_rul(values, faulty, limits, velocity, arrival, clock, out)
     np.testing.assert_array_equal(out, expected)
     assert np.isinf(out).any() and (out == 0).any() and np.isfinite(out).any()
+
+
+def test_drift_prognosis_is_the_suspects_drift_ends_within_the_horizon():
+    rng = _rng(10)
+    n, d = 200, 3
+    value = 100.0 + rng.normal(0.0, 8.0, (n, d))
+    drift = rng.normal(0.0, 0.2, (n, d))
+    root = rng.normal(0.0, 1.0, (n, d, 2, 2)) * np.array([2.0, 0.05])[:, None]
+    covariance = root @ np.swapaxes(root, -1, -2)
+    stamps = np.repeat(rng.uniform(0.0, 500.0, n)[:, None], d, axis=1)
+    isolated = rng.integers(1, d + 1, n)
+    confident = rng.random(n) < 0.6
+    lower, upper, diffusion = np.array([90.0, 80.0, 95.0]), np.array([110.0, 120.0, 105.0]), rng.uniform(0.0, 0.05, d)
+    t, z, horizon = stamps[:, 0] + 0.5, 1.959963984540054, 300.0
+    estimate, ends, suspect_drift, suspect_variance = np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n)
+    drift_prognosis(value, drift, covariance[..., 0, 0].copy(), covariance[..., 0, 1].copy(), covariance[..., 1, 1].copy(), stamps, isolated,
+                    confident, lower, upper, diffusion, t, z**2, horizon, estimate, ends, suspect_drift, suspect_variance)
+    rows = np.flatnonzero(confident)
+    k = isolated[rows] - 1
+    expected = np.empty((len(rows), 3))
+    drift_ends(value[rows, k], drift[rows, k], covariance[rows, k, 0, 0], covariance[rows, k, 0, 1], covariance[rows, k, 1, 1], lower[k], upper[k],
+               stamps[rows, k], diffusion[k], z**2, expected)
+    expected = np.where(expected - t[rows, None] > horizon, np.inf, expected)
+    np.testing.assert_array_equal(ends[rows], expected)
+    np.testing.assert_array_equal(estimate[rows], value[rows, k])
+    np.testing.assert_array_equal(suspect_drift[rows], drift[rows, k])
+    np.testing.assert_array_equal(suspect_variance[rows], covariance[rows, k, 1, 1])
+    assert np.isinf(ends[~confident]).all() and np.isnan(estimate[~confident]).all()
+    assert np.isinf(expected).any() and np.isfinite(expected).any()

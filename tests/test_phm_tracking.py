@@ -69,6 +69,11 @@ def test_drift_prognosis_carries_the_confident_suspects_value_and_drift_to_its_l
     assert prediction.path(np.array([30.0]))[0] == pytest.approx(85.0)
     # the unsure system: no End of Life, no estimate
     assert out.end_of_life[1] is None and math.isinf(out.eol[1]) and math.isnan(out.estimate[1])
+    # the predictions read as a sequence of N: by negative index and slice alike
+    assert len(out.end_of_life) == 2 and out.end_of_life[-1] is None and out.end_of_life[-2] == prediction
+    assert out.end_of_life[:] == (prediction, None) and list(out.end_of_life) == [prediction, None]
+    with pytest.raises(IndexError):
+        out.end_of_life[2]
     # beyond the horizon: none either
     far = prognosis.update(estimates(value, drift * 1e-3, np.zeros((2, 3)), np.zeros((2, 3)), np.zeros((2, 3)), np.full(2, 10.0)),
                            np.array([1, 1]), np.array([True, False]), np.full(2, 10.0))

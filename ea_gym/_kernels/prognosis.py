@@ -15,36 +15,65 @@ import numpy as np
 from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 
 
+@numba.njit(cache=True, error_model="numpy", inline="always")
+def drift_end(
+    value: float, drift: float, v_tt: float, v_td: float, v_dd: float, lower: float, upper: float, t: float, diffusion: float, z2: float,
+) -> tuple[float, float, float]:
+    """End of Life, its low and high end (s) of one parameter: its ``value`` and ``drift`` (unit/s), their
+    covariance's entries v_tt, v_td, v_dd, its safe limits, when the values hold ``t`` (s), theta's random
+    walk ``diffusion`` (unit^2/s); z2: the square (Python's z**2) of the confidence's normal quantile z."""
+    upward = drift >= 0
+    limit = upper if upward else lower
+    sign = 1.0 if upward else -1.0
+    margin = sign * (limit - value)
+    rate = sign * drift
+    cross = v_td + 0.5 * diffusion
+    tau = 0.0 if margin <= 0 else (margin / rate if rate > 0 else math.inf)
+    a = rate * rate - z2 * v_dd
+    b = -2.0 * rate * margin - 2.0 * z2 * cross
+    c = margin * margin - z2 * v_tt
+    root = math.sqrt(numpy_maximum(b * b - 4.0 * a * c, 0.0))
+    linear = -c / b
+    r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
+    small, large = numpy_minimum(r1, r2), numpy_maximum(r1, r2)
+    low = small if a > 0 else (large if a < 0 else linear)
+    low = 0.0 if c <= 0 else numpy_maximum(low, 0.0)
+    high = numpy_maximum(large, 0.0) if a > 0 else math.inf
+    if margin < 0 and c > 0:
+        high = 0.0
+    return t + tau, t + low, t + high
+
+
 @numba.njit(cache=True, error_model="numpy")
 def drift_ends(
     value: np.ndarray, drift: np.ndarray, v_tt: np.ndarray, v_td: np.ndarray, v_dd: np.ndarray, lower: np.ndarray,
     upper: np.ndarray, t: np.ndarray, diffusion: np.ndarray, z2: float, out: np.ndarray,
 ) -> None:
-    """End of Life, its low and high end (s) of every element of the 1-d inputs into ``out`` (M, 3).
-
-    Args:
-        value, drift: the parameter and its drift (unit/s); v_tt, v_td, v_dd: their covariance's
-            entries; lower, upper: the safe limits; t: when the values hold (s); diffusion: theta's
-            random walk (unit^2/s); z2: the square (Python's z**2) of the confidence's normal quantile z.
-    """
+    """``drift_end`` of every element of the 1-d inputs into ``out`` (M, 3)."""
     for m in range(value.shape[0]):
-        upward = drift[m] >= 0
-        limit = upper[m] if upward else lower[m]
-        sign = 1.0 if upward else -1.0
-        margin = sign * (limit - value[m])
-        rate = sign * drift[m]
-        cross = v_td[m] + 0.5 * diffusion[m]
-        tau = 0.0 if margin <= 0 else (margin / rate if rate > 0 else math.inf)
-        a = rate * rate - z2 * v_dd[m]
-        b = -2.0 * rate * margin - 2.0 * z2 * cross
-        c = margin * margin - z2 * v_tt[m]
-        root = math.sqrt(numpy_maximum(b * b - 4.0 * a * c, 0.0))
-        linear = -c / b
-        r1, r2 = (-b - root) / (2.0 * a), (-b + root) / (2.0 * a)
-        small, large = numpy_minimum(r1, r2), numpy_maximum(r1, r2)
-        low = small if a > 0 else (large if a < 0 else linear)
-        low = 0.0 if c <= 0 else numpy_maximum(low, 0.0)
-        high = numpy_maximum(large, 0.0) if a > 0 else math.inf
-        if margin < 0 and c > 0:
-            high = 0.0
-        out[m, 0], out[m, 1], out[m, 2] = t[m] + tau, t[m] + low, t[m] + high
+        out[m, 0], out[m, 1], out[m, 2] = drift_end(value[m], drift[m], v_tt[m], v_td[m], v_dd[m], lower[m], upper[m], t[m], diffusion[m], z2)
+
+
+@numba.njit(cache=True, error_model="numpy")
+def drift_prognosis(
+    value: np.ndarray, drift: np.ndarray, variance: np.ndarray, covariance: np.ndarray, drift_variance: np.ndarray, stamps: np.ndarray,
+    isolated: np.ndarray, confident: np.ndarray, lower: np.ndarray, upper: np.ndarray, diffusion: np.ndarray, t: np.ndarray, z2: float,
+    horizon: float, estimate: np.ndarray, ends: np.ndarray, suspect_drift: np.ndarray, suspect_drift_variance: np.ndarray,
+) -> None:
+    """``DriftPrognosis.update`` of N systems: for every ``confident`` one, its suspect d = isolated - 1's
+    ``drift_end`` (from the estimator's (N, D) value, drift, variance, covariance, drift_variance, at its
+    ``stamps``; safe limits, diffusion per parameter (D,)), each end more than ``horizon`` s after ``t``
+    (N,) inf; into estimate (N,) (NaN elsewhere), ends (N, 3) (inf elsewhere) and the suspect's drift and
+    its variance (N,) (NaN elsewhere)."""
+    for m in range(value.shape[0]):
+        if not confident[m]:
+            estimate[m], suspect_drift[m], suspect_drift_variance[m] = math.nan, math.nan, math.nan
+            ends[m, 0], ends[m, 1], ends[m, 2] = math.inf, math.inf, math.inf
+            continue
+        d = isolated[m] - 1
+        end = drift_end(
+            value[m, d], drift[m, d], variance[m, d], covariance[m, d], drift_variance[m, d], lower[d], upper[d], stamps[m, d], diffusion[d], z2
+        )
+        for k in range(3):
+            ends[m, k] = math.inf if end[k] - t[m] > horizon else end[k]
+        estimate[m], suspect_drift[m], suspect_drift_variance[m] = value[m, d], drift[m, d], drift_variance[m, d]

@@ -23,7 +23,7 @@ from typing import Protocol, overload
 
 import numpy as np
 
-from ea_gym._kernels.prognosis import drift_ends
+from ea_gym._kernels.prognosis import drift_ends, drift_prognosis
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.estimation import ParameterEstimates
@@ -218,18 +218,11 @@ def drift_end_of_life(
         value, drift, covariance[..., 0, 0], covariance[..., 0, 1], covariance[..., 1, 1], limits[..., 0], limits[..., 1], t, diffusion
     )
     shape = inputs[0].shape
-    ends = _drift_ends([np.ascontiguousarray(x, dtype=float).reshape(-1) for x in inputs], confidence)
-    return ends[:, 0].reshape(shape), ends[:, 1].reshape(shape), ends[:, 2].reshape(shape)
-
-
-def _drift_ends(inputs: list[np.ndarray], confidence: float) -> np.ndarray:
-    """``drift_end_of_life``'s three ends (M, 3) of its inputs as 1-d float arrays (M,): value, drift, var theta,
-    cov(theta, drift), var drift, lower and upper limit, t, diffusion."""
-    ends = np.empty((len(inputs[0]), 3))
+    value, drift, v_tt, v_td, v_dd, lower, upper, stamps, walk = (np.ascontiguousarray(x, dtype=float).reshape(-1) for x in inputs)
+    ends = np.empty((len(value), 3))
     # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td: compiled, element by element
-    value, drift, v_tt, v_td, v_dd, lower, upper, t, diffusion = inputs
-    drift_ends(value, drift, v_tt, v_td, v_dd, lower, upper, t, diffusion, normal_quantile(0.5 + 0.5 * confidence) ** 2, ends)
-    return ends
+    drift_ends(value, drift, v_tt, v_td, v_dd, lower, upper, stamps, walk, normal_quantile(0.5 + 0.5 * confidence) ** 2, ends)
+    return ends[:, 0].reshape(shape), ends[:, 1].reshape(shape), ends[:, 2].reshape(shape)
 
 
 @cache
@@ -360,6 +353,7 @@ class DriftPrognosis:
 
     def __init__(self, model: SystemModel, degradable: tuple[str, ...], config: ExtrapolationConfig, diffusion: np.ndarray, n_systems: int):
         self.limits = np.array([model.safe_limits[p] for p in degradable], dtype=float)
+        self._lower, self._upper = self.limits[:, 0].copy(), self.limits[:, 1].copy()
         self.config = config
         self.diffusion = np.asarray(diffusion, dtype=float)
         self.n = n_systems
@@ -371,40 +365,33 @@ class DriftPrognosis:
         """Nothing to shift: the estimator moves its estimate by the logged change."""
 
     def update(self, estimates: ParameterEstimates, isolated: np.ndarray, confident: np.ndarray, t: np.ndarray) -> Prognosis:
-        """The End of Life of every confident suspect (class index ``isolated``) from its value and drift at ``t`` (s)."""
-        estimate, eol = np.full(self.n, np.nan), np.full((self.n, 3), math.inf)
-        rows = np.flatnonzero(confident)  # no End of Life for a suspect the isolation is unsure of
-        d = isolated[rows] - 1
-        value, drift, drift_variance = estimates.value[rows, d], estimates.drift[rows, d], estimates.drift_variance[rows, d]
-        ends = _drift_ends(
-            [value, drift, estimates.variance[rows, d], estimates.covariance[rows, d], drift_variance, self.limits[d, 0], self.limits[d, 1],
-             estimates.time[rows, d], self.diffusion[d]], self.config.confidence,
+        """The End of Life of every confident suspect (class index ``isolated``) from its value and drift at ``t`` (s);
+        none for a suspect the isolation is unsure of, nor beyond the horizon (as far ahead as the trend route looks)."""
+        n = self.n
+        estimate, ends, drift, drift_variance = np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n)
+        drift_prognosis(
+            estimates.value, estimates.drift, estimates.variance, estimates.covariance, estimates.drift_variance, estimates.time,
+            np.asarray(isolated), np.asarray(confident), self._lower, self._upper, self.diffusion, np.asarray(t, dtype=float),
+            normal_quantile(0.5 + 0.5 * self.config.confidence) ** 2, self.config.horizon, estimate, ends, drift, drift_variance,
         )
-        now = t[rows]
-        # as far ahead as the trend route looks: beyond the horizon, no End of Life
-        ends = np.where(ends - now[:, None] > self.config.horizon, math.inf, ends)
-        estimate[rows] = value
-        eol[rows] = ends
-        predictions = DriftEndsOfLife(self.n, rows, now, ends, value, drift, drift_variance)
-        return Prognosis(estimate=estimate, eol=eol[:, 0], eol_low=eol[:, 1], eol_high=eol[:, 2], end_of_life=predictions)
+        predictions = DriftEndsOfLife(np.array(confident, dtype=bool), np.array(t, dtype=float), ends, estimate, drift, drift_variance)
+        return Prognosis(estimate=estimate, eol=ends[:, 0], eol_low=ends[:, 1], eol_high=ends[:, 2], end_of_life=predictions)
 
 
 class DriftEndsOfLife(Sequence["EndOfLife | None"]):
     """Each of N systems' ``DriftPrognosis`` prediction, None where none, made when read (most steps nobody does).
 
     Args:
-        n: N.
-        rows: the systems with a prediction, (M,); for each: the prediction time ``t`` (s), the End of
-            Life and interval ``ends`` (M, 3), the ``value`` and ``drift`` it starts from and the drift's variance.
+        made: which systems have a prediction, (N,); t: the prediction time (s), (N,); ends: End of Life
+            and interval (s), (N, 3); value: the estimate it starts from; drift and drift_variance: the drift
+            and its variance, (N,) each.
     """
 
-    def __init__(self, n: int, rows: np.ndarray, t: np.ndarray, ends: np.ndarray, value: np.ndarray, drift: np.ndarray, drift_variance: np.ndarray):
-        self._n = n
-        self._slot = dict(zip(rows.tolist(), range(len(rows))))
-        self._t, self._ends, self._value, self._drift, self._drift_variance = t, ends, value, drift, drift_variance
+    def __init__(self, made: np.ndarray, t: np.ndarray, ends: np.ndarray, value: np.ndarray, drift: np.ndarray, drift_variance: np.ndarray):
+        self._made, self._t, self._ends, self._value, self._drift, self._drift_variance = made, t, ends, value, drift, drift_variance
 
     def __len__(self) -> int:
-        return self._n
+        return len(self._t)
 
     @overload
     def __getitem__(self, i: int) -> EndOfLife | None: ...
@@ -414,16 +401,15 @@ class DriftEndsOfLife(Sequence["EndOfLife | None"]):
 
     def __getitem__(self, i: int | slice) -> EndOfLife | None | tuple[EndOfLife | None, ...]:
         if isinstance(i, slice):
-            return tuple(self[j] for j in range(*i.indices(self._n)))
+            return tuple(self[j] for j in range(*i.indices(len(self))))
         j = operator.index(i)
-        if not -self._n <= j < self._n:
-            raise IndexError(f"system {j} out of range for {self._n} systems")
-        k = self._slot.get(j % self._n)
-        if k is None:
+        if not -len(self) <= j < len(self):
+            raise IndexError(f"system {j} out of range for {len(self)} systems")
+        if not self._made[j]:
             return None
-        ends, drift = self._ends[k], float(self._drift[k])
+        ends, drift = self._ends[j], float(self._drift[j])
         limit = ("lower" if drift < 0 else "upper") if math.isfinite(ends[0]) else None
         return EndOfLife(
-            float(self._t[k]), float(ends[0]), float(ends[1]), float(ends[2]), limit, float(self._value[k]), drift,
-            math.sqrt(max(float(self._drift_variance[k]), 0.0)), None,
+            float(self._t[j]), float(ends[0]), float(ends[1]), float(ends[2]), limit, float(self._value[j]), drift,
+            math.sqrt(max(float(self._drift_variance[j]), 0.0)), None,
         )
