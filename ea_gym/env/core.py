@@ -158,7 +158,8 @@ class MaintenanceCore:
         if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or np.any((actions < 0) | (actions >= n_actions)):
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
         c, dt = self.config.costs, self.config.step_seconds
-        costs = {key: np.zeros(self.n) for key in COST_ITEMS[:-1]}
+        items = np.zeros((len(COST_ITEMS) - 1, self.n))  # one row per cost item but the total
+        costs = dict(zip(COST_ITEMS[:-1], items))
         events: list[list[Event]] = [[] for _ in range(self.n)]
         actions = np.where(self._down > 0, 0, actions)  # a machine under replacement takes no orders
         maintained = self._maintain(actions, rngs, costs, events)
@@ -176,7 +177,7 @@ class MaintenanceCore:
 
         terminated = failed & (not self.config.continue_after_failure)
         truncated = (self._steps >= self.config.horizon) & ~terminated
-        total = sum(costs.values(), np.zeros(self.n))
+        total = items.sum(axis=0)  # from 0, item after item
         costs["total"] = total
         observation = self.observe(outputs)
         info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events)
