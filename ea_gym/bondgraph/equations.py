@@ -175,14 +175,18 @@ class StateSpaceModel:
                 f"({list(self.parameter_names)}), got shape {theta.shape}"
             )
         batch = theta.shape[:-1]
-        M = np.broadcast_to(self._M0, batch + self._M0.shape).copy()
-        N = np.zeros(batch + (2 * self.n_bonds, self.n_states))
+        nx = len(self.state_names)
+        M = np.empty(batch + self._M0.shape)
+        M[...] = self._M0
+        rhs = np.empty(batch + (2 * self.n_bonds, nx + self._P.shape[1]))  # [N | P]
+        N = rhs[..., :nx]
+        N[...] = 0.0
+        rhs[..., nx:] = self._P
         for entry in self._entries:
             value = theta[..., entry.parameter]
             coefficient = entry.scale / value if entry.reciprocal else entry.scale * value
             target = M if entry.matrix == "M" else N
             target[..., entry.row, entry.col] += coefficient
-        rhs = np.concatenate([N, np.broadcast_to(self._P, batch + self._P.shape)], axis=-1)
         try:
             X = np.linalg.solve(M, rhs)
         except np.linalg.LinAlgError:
@@ -190,7 +194,7 @@ class StateSpaceModel:
                 "the bond-graph equations are singular for these parameters (an ill-posed algebraic loop "
                 f"through {list(self.causality.algebraic_loop)})"
             ) from None
-        Cy, Dy = X[..., : self.n_states], X[..., self.n_states :]
+        Cy, Dy = X[..., :nx], X[..., nx:]
         return LinearMatrices(A=self._S @ Cy, B=self._S @ Dy, Cy=Cy, Dy=Dy)
 
     def element_bonds(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray]:

@@ -12,6 +12,7 @@ Everything is batched over N systems: arrays carry a leading system axis.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cache
 
 import numpy as np
 from numpy.polynomial import chebyshev
@@ -54,15 +55,24 @@ def discretize(A: np.ndarray, B: np.ndarray, h: float) -> Discretization:
     nx, nu = A.shape[-1], B.shape[-1]
     batch = A.shape[:-2]
     size = nx + HOLD_ORDER * nu
-    Z = np.zeros(batch + (size, size))
+    Z = np.empty(batch + (size, size))
     Z[..., :nx, :nx] = A
     Z[..., :nx, nx : nx + nu] = B
-    for j in range(HOLD_ORDER - 1):
-        rows = slice(nx + j * nu, nx + (j + 1) * nu)
-        cols = slice(nx + (j + 1) * nu, nx + (j + 2) * nu)
-        Z[..., rows, cols] = np.eye(nu)
+    Z[..., :nx, nx + nu :] = 0.0
+    Z[..., nx:, :] = _input_chain(nx, nu)
     E = expm(Z * h)
     return Discretization(Phi=E[..., :nx, :nx], Gamma=E[..., :nx, nx:])
+
+
+@cache
+def _input_chain(nx: int, nu: int) -> np.ndarray:
+    """The input rows of ``discretize``'s augmented matrix, (HOLD_ORDER nu, nx + HOLD_ORDER nu): each Taylor
+    coefficient's derivative is the next one (an identity block), the last one's is 0."""
+    rows = np.zeros((HOLD_ORDER * nu, nx + HOLD_ORDER * nu))
+    for j in range(HOLD_ORDER - 1):
+        rows[j * nu : (j + 1) * nu, nx + (j + 1) * nu : nx + (j + 2) * nu] = np.eye(nu)
+    rows.flags.writeable = False
+    return rows
 
 
 def hermite_coefficients(u: np.ndarray, du: np.ndarray, h: float) -> np.ndarray:

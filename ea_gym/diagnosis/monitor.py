@@ -124,6 +124,10 @@ class Monitor:
         self._to_state = np.array(
             [nominal[space.parameter_names.index(s)] if elements[s].kind is Kind.I else 1.0 for s in space.state_names]
         )
+        # (state, parameter) of every I element's momentum, which its sensor reads as p / I
+        self._momenta = [
+            (j, space.parameter_names.index(name)) for j, name in enumerate(space.state_names) if elements[name].kind is Kind.I
+        ]
         # I elements: P = I0 f df/dt from their own flow; the junction structure would give their
         # effort by closing the power balance, which would hide the fault in it
         self._inertance = {
@@ -142,11 +146,9 @@ class Monitor:
 
     def measurement_gain(self, parameters: np.ndarray) -> np.ndarray:
         """The diagonal of ``measurement_matrix``, (..., nx): 1 / I on each I element's momentum, 1 elsewhere."""
-        space = self.model.state_space
-        diagonal = np.ones(np.shape(parameters)[:-1] + (len(space.state_names),))
-        for j, name in enumerate(space.state_names):
-            if self.model.graph.elements[name].kind is Kind.I:
-                diagonal[..., j] = 1.0 / parameters[..., space.parameter_names.index(name)]
+        diagonal = np.ones(np.shape(parameters)[:-1] + (len(self._to_state),))
+        for j, p in self._momenta:
+            diagonal[..., j] = 1.0 / parameters[..., p]
         return diagonal
 
     def measurement_matrix(self, parameters: np.ndarray) -> np.ndarray:
