@@ -8,8 +8,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ea_gym._kernels.wear import mean_trend_rul, steady_wear
-
 
 class ProfileError(ValueError):
     """An invalid profile point; ``index`` is the culprit point's index (None for the whole profile)."""
@@ -186,6 +184,8 @@ class Wear:
 
     def advance(self, values: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """Wear the faulty components over [clock, clock + dt]; ``values`` (N, D) in parameter units."""
+        from ea_gym._kernels.wear import steady_wear  # compiled: numba is imported when the first system wears
+
         out = np.array(values, dtype=float)
         n = len(out)
         active, drawn = np.empty(n), np.empty(n, dtype=bool)
@@ -208,6 +208,8 @@ class Wear:
 
     def true_rul(self, values: np.ndarray, clock: np.ndarray) -> np.ndarray:
         """Time (s) until the faulty component's mean trend reaches its limit; inf before the fault arrives."""
+        from ea_gym._kernels.wear import mean_trend_rul
+
         rul = np.empty(len(values))
         mean_trend_rul(np.asarray(values, dtype=float), self.faulty, self.limits, self.velocity, self.arrival, np.asarray(clock, dtype=float), rul)
         return rul
