@@ -168,9 +168,16 @@ STAGES = (
     ("isolation network", ("torch/", "diagnosis/classifier")),
     ("isolation features", ("diagnosis/features", "scipy/signal")),
     ("balance evidence and fusion", ("phm/isolation",)),
-    ("monitor (EA, detection)", ("_kernels/monitor", "diagnosis/monitor", "_kernels/activity", "_kernels/smoothing", "phm/detection", "phm/history")),
-    ("plant and wear", ("_kernels/expm", "bondgraph/", "env/operation", "degradation", "_kernels/multisine", "loads")),
-    ("prognosis", ("phm/prognosis", "_kernels/propagation", "_kernels/normal")),
+    ("monitor (EA, detection)", (
+        "_kernels/monitor", "diagnosis/monitor", "_kernels/activity", "_kernels/smoothing", "phm/detection", "phm/history", "_kernels/detection",
+        "_kernels/history",
+    )),
+    # the plant's simulation (expm, propagation: with the default tracking estimator, the plant's alone) and its sensors' draws (normal)
+    ("plant and wear", (
+        "_kernels/expm", "bondgraph/", "env/operation", "degradation", "_kernels/multisine", "loads", "_kernels/wear", "_kernels/propagation",
+        "_kernels/normal", "ea_gym/sensors",
+    )),
+    ("prognosis", ("phm/prognosis", "_kernels/prognosis")),
 )
 
 
