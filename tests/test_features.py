@@ -1,9 +1,13 @@
-"""Isolation features: the batched spectral peaks equal scipy's find_peaks applied spectrum by spectrum."""
+"""Isolation features: the batched spectral peaks equal scipy's find_peaks applied spectrum by spectrum, and the
+features of frames read in place equal their plain numpy definition to the bit."""
 
 import numpy as np
+import pytest
 from scipy.signal import find_peaks
 
-from ea_gym.diagnosis.features import N_PEAKS, residual_spectrogram, spectral_peaks
+from ea_gym._kernels.features import numpy_sum, spectrum_peaks, summation_scratch
+from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, balance_deviation, frame_features, residual_spectrogram, spectral_peaks
+from ea_gym.numerics import TINY
 
 
 def peaks_row_by_row(residual, sub_window, scale, max_frequency, min_relative=0.05):
@@ -60,3 +64,69 @@ def test_residual_spectrogram_equals_scipy_stft_with_its_default_window_to_the_b
         f, t, Z = stft(residual, fs=4.0, nperseg=frame, noverlap=frame - hop, boundary=None, padded=False, detrend="constant")
         assert np.array_equal(frequencies, f) and np.array_equal(times, t)
         assert np.abs(Z).tobytes() == magnitude.tobytes()
+
+
+def features_by_definition(frame, variant, max_frequency):
+    """``frame_features`` in plain numpy, all rows: the definition the compiled sums follow."""
+    residual = frame.ea - frame.ea_reference
+    i = frame.inertia_index
+    peaks = peaks_row_by_row(residual[:, i], frame.sub_window, frame.ea_reference.mean(-1)[:, i], max_frequency)
+    if variant == "paper":
+        return peaks
+    half = frame.ea.shape[-1] // 2
+    relative = [
+        residual[..., part].sum(-1) / np.maximum(frame.ea_reference[..., part].sum(-1), TINY)
+        for part in (slice(None), slice(None, half), slice(half, None))
+    ]
+    ea_c, ref_c = frame.ea[:, frame.component_index].sum(-1), frame.ea_reference[:, frame.component_index].sum(-1)
+    eai = ea_c / np.maximum(ea_c.sum(-1, keepdims=True), TINY) - ref_c / np.maximum(ref_c.sum(-1, keepdims=True), TINY)
+    return np.concatenate([*relative, eai, balance_deviation(frame.gram, frame.cross), frame.noise, peaks], axis=-1)
+
+
+def random_frame(rng, n, elements=4, length=200, offset=37):
+    """Frames of n systems whose EA are windows on a longer array, as the chain's history holds them."""
+    scale = 10.0 ** rng.uniform(-3, 3, (n, elements, 1))
+    backing = rng.uniform(0.5, 1.5, (2, n, elements, 2 * length)) * scale
+    backing[0, 1, 0] = 0.0  # an element with no activity: the relative residual's floor
+    backing[1, 2, 2, :length] = backing[0, 2, 2, :length]  # no residual at all
+    ea, reference = backing[..., offset : offset + length]
+    gram = rng.normal(size=(n, 3, 5))
+    return Frame(
+        ea=ea, ea_reference=reference, gram=gram @ gram.transpose(0, 2, 1), cross=rng.normal(size=(n, 3)),
+        noise=rng.uniform(0, 0.1, (n, 2)), sub_window=0.25, component_index=np.array([0, 2, 3]), inertia_index=2,
+    )
+
+
+@pytest.mark.parametrize("variant", VARIANTS)
+def test_frame_features_equal_their_numpy_definition_to_the_bit(variant):
+    rng = np.random.default_rng(6)
+    for length in (200, 40, 300):  # a frame of 300 sums past numpy's pairwise block of 128
+        frame = random_frame(rng, 9, length=length)
+        everything = features_by_definition(frame, variant, 2.0)
+        assert frame_features(frame, variant, 2.0).tobytes() == everything.tobytes()
+        rows = np.array([7, 1, 4])
+        assert frame_features(frame, variant, 2.0, rows).tobytes() == everything[rows].tobytes()
+        assert frame_features(frame, variant, 2.0, np.array([], dtype=int)).shape == (0, everything.shape[1])
+
+
+def test_numpy_sum_adds_as_numpy_does_to_the_bit():
+    rng = np.random.default_rng(7)
+    scratch = summation_scratch()
+    for count in [*range(0, 300), 1000, 4099, 100_003]:
+        values = rng.normal(size=count + 5) * 10.0 ** rng.uniform(-8, 8, count + 5)
+        for start in (0, 3):
+            assert np.float64(numpy_sum(values, start, start + count, scratch)).tobytes() == np.sum(values[start : start + count]).tobytes()
+    assert np.float64(numpy_sum(np.array([-0.0, -0.0]), 0, 2, scratch)).tobytes() == np.sum(np.array([-0.0, -0.0])).tobytes()
+
+
+def test_spectrum_peaks_flag_equal_neighbours_and_equal_peaks():
+    frequencies = np.arange(8) * 0.5
+    magnitude = np.array([
+        [0, 3, 1, 2, 1, 0, 0.5, 0],  # distinct peaks 3 at 0.5 Hz, 2 at 1.5 Hz, 0.5 at 3 Hz
+        [0, 3, 1, 3, 1, 0, 0, 0],  # two equal peaks
+        [0, 1, 2, 2, 1, 0, 0, 0],  # a plateau
+    ], dtype=float)
+    out = np.empty((3, 2 * N_PEAKS))
+    tied = spectrum_peaks(magnitude, frequencies, 2.0, 0.05, out)
+    assert list(tied) == [False, True, True]
+    np.testing.assert_array_equal(out[0], [0.5, 3, 1.5, 2, 0, 0])  # the third is above max_frequency

@@ -164,14 +164,14 @@ class Isolation:
         probabilities = np.zeros((self.n, len(self.classes)))
         probabilities[:, 0] = 1.0
         # isolation only matters once a fault is detected, and needs a full frame
-        counted = self.counted(history, alarm)
-        if np.any(counted):
-            noise = history.noise[counted].sum(-1)
+        counted = np.flatnonzero(self.counted(history, alarm))
+        if len(counted):
+            # the frame of every system, read in place from the history; the features of the counted ones
+            steps = self.frame_steps
             frame = self.monitor.frame_of(
-                history.ea[counted], history.ea_reference[counted],
-                history.gram[counted, ..., -self.frame_steps :].sum(-1), history.cross[counted, ..., -self.frame_steps :].sum(-1), noise,
+                history.ea, history.ea_reference, history.gram[..., -steps:].sum(-1), history.cross[..., -steps:].sum(-1), history.noise.sum(-1),
             )
-            features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth)
+            features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth, counted)
             probabilities[counted] = self.classifier.predict_proba(features)
         # an exponential average over the frames since the alarm: later frames, with the fault grown,
         # outweigh the first ambiguous ones

@@ -1,0 +1,183 @@
+"""The isolation features' compiled steps (``ea_gym.diagnosis.features``): a frame's EA sums read straight
+from the frame's rows (no copy of the frame), and the largest peaks of every spectrum.
+
+Every sum is numpy's: :func:`numpy_sum` adds as ``np.sum`` does along a contiguous axis (pairwise, eight
+accumulators), so that the features equal the plain numpy form of their definition to the bit.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ea_gym.numerics import TINY
+
+#: numpy's pairwise summation: blocks up to this length are summed with eight accumulators
+_BLOCK = 128
+
+
+@numba.njit(cache=True)
+def _block_sum(values: np.ndarray, start: int, count: int) -> float:
+    """numpy's sum of a block of up to ``_BLOCK`` values: in order below 8, else eight interleaved accumulators."""
+    if count < 8:
+        total = -0.0
+        for i in range(start, start + count):
+            total += values[i]
+        return total
+    r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
+    r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
+    i = start + 8
+    blocks = start + count - count % 8
+    while i < blocks:
+        r0 += values[i]
+        r1 += values[i + 1]
+        r2 += values[i + 2]
+        r3 += values[i + 3]
+        r4 += values[i + 4]
+        r5 += values[i + 5]
+        r6 += values[i + 6]
+        r7 += values[i + 7]
+        i += 8
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    for j in range(i, start + count):
+        total += values[j]
+    return total
+
+
+@numba.njit(cache=True)
+def summation_scratch() -> tuple[np.ndarray, np.ndarray]:
+    """The working space of :func:`numpy_sum` (pending blocks, partial sums): one for any number of sums."""
+    return np.empty((128, 3), dtype=np.int64), np.empty(64)
+
+
+@numba.njit(cache=True)
+def numpy_sum(values: np.ndarray, start: int, stop: int, scratch: tuple[np.ndarray, np.ndarray]) -> float:
+    """``np.sum(values[start:stop])`` of a 1-D float64 array, to the bit.
+
+    numpy halves a run longer than ``_BLOCK`` (the first half a multiple of 8) and adds the halves'
+    sums, recursively; the recursion is unrolled on ``scratch`` (numba's cache cannot hold a recursive
+    function). The total is added to the sum's identity 0, as numpy's reduction does.
+    """
+    count = stop - start
+    if count <= _BLOCK:
+        return 0.0 + _block_sum(values, start, count)
+    tasks, partial = scratch
+    # a task is (start, count, 0) to sum a run, or (0, 0, 1) to add the last two partial sums
+    tasks[0, 0], tasks[0, 1], tasks[0, 2] = start, count, 0
+    pending, done = 1, 0
+    while pending:
+        pending -= 1
+        first, length, add = tasks[pending, 0], tasks[pending, 1], tasks[pending, 2]
+        if add:
+            done -= 1
+            partial[done - 1] += partial[done]
+        elif length <= _BLOCK:
+            partial[done] = _block_sum(values, first, length)
+            done += 1
+        else:
+            half = length // 2
+            half -= half % 8
+            # popped in reverse: the first half, the second, then their sum
+            tasks[pending, 0], tasks[pending, 1], tasks[pending, 2] = 0, 0, 1
+            tasks[pending + 1, 0], tasks[pending + 1, 1], tasks[pending + 1, 2] = first + half, length - half, 0
+            tasks[pending + 2, 0], tasks[pending + 2, 1], tasks[pending + 2, 2] = first, half, 0
+            pending += 3
+    return 0.0 + partial[0]
+
+
+@numba.njit(cache=True)
+def _relative(numerator: float, denominator: float) -> float:
+    """numerator / np.maximum(denominator, TINY) (NaN stays NaN)."""
+    return numerator / (TINY if denominator < TINY else denominator)
+
+
+@numba.njit(cache=True)
+def frame_sums(
+    ea: np.ndarray, ea_reference: np.ndarray, rows: np.ndarray, inertia: int, components: np.ndarray,
+    residual_out: np.ndarray, features: np.ndarray,
+) -> np.ndarray:
+    """The EA sums of the frames of ``rows`` of ``ea`` and ``ea_reference`` (N, E, F) in J.
+
+    Writes, for the k-th row: residual_out[k] = the I element's residual (EA_real - EA_ref) per
+    sub-window, (F,); features[k, :3 E] = every element's relative residual over the frame, its first
+    half and its second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual.
+    Returns the I element's mean reference EA per sub-window, (M,).
+    """
+    E, F = ea.shape[1], ea.shape[2]
+    C = len(components)
+    half = F // 2
+    # each element's sub-windows, copied contiguous: the sums' loops then vectorise
+    real, reference, residual = np.empty(F), np.empty(F), np.empty(F)
+    real_total, reference_total = np.empty(E), np.empty(E)
+    ea_share, reference_share = np.empty(C), np.empty(C)
+    scale = np.empty(len(rows))
+    scratch = summation_scratch()
+    for k in range(len(rows)):
+        n = rows[k]
+        for e in range(E):
+            for t in range(F):
+                real[t] = ea[n, e, t]
+                reference[t] = ea_reference[n, e, t]
+                residual[t] = real[t] - reference[t]
+            real_total[e] = numpy_sum(real, 0, F, scratch)
+            reference_total[e] = numpy_sum(reference, 0, F, scratch)
+            features[k, e] = _relative(numpy_sum(residual, 0, F, scratch), reference_total[e])
+            features[k, E + e] = _relative(numpy_sum(residual, 0, half, scratch), numpy_sum(reference, 0, half, scratch))
+            features[k, 2 * E + e] = _relative(numpy_sum(residual, half, F, scratch), numpy_sum(reference, half, F, scratch))
+            if e == inertia:
+                residual_out[k] = residual
+                scale[k] = reference_total[e] / F
+        for c in range(C):
+            ea_share[c], reference_share[c] = real_total[components[c]], reference_total[components[c]]
+        ea_sum, reference_sum = numpy_sum(ea_share, 0, C, scratch), numpy_sum(reference_share, 0, C, scratch)
+        for c in range(C):
+            features[k, 3 * E + c] = _relative(ea_share[c], ea_sum) - _relative(reference_share[c], reference_sum)
+    return scale
+
+
+@numba.njit(cache=True)
+def spectrum_peaks(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float, out: np.ndarray) -> np.ndarray:
+    """The largest peaks of every spectrum (M, P): out[k] = [f_1, a_1, f_2, a_2, ...] (zeros where missing).
+
+    A peak is a sample above both neighbours at a frequency up to ``max_frequency`` whose amplitude is
+    at least ``min_relative`` of the largest such one; they are ranked by amplitude. Returns which
+    spectra hold equal neighbours or equal peaks (M,): for those, plateaus and ties need scipy's rules.
+    """
+    M, P = magnitude.shape
+    count = out.shape[1] // 2
+    tied = np.zeros(M, dtype=np.bool_)
+    peaks = np.empty(P, dtype=np.int64)
+    for k in range(M):
+        spectrum = magnitude[k]
+        found = 0
+        top = -np.inf
+        for p in range(P):
+            if p > 0 and spectrum[p] == spectrum[p - 1]:
+                tied[k] = True
+            if 0 < p < P - 1 and spectrum[p] > spectrum[p - 1] and spectrum[p] > spectrum[p + 1] and frequencies[p] <= max_frequency:
+                peaks[found] = p
+                found += 1
+                top = max(top, spectrum[p])
+        floor = min_relative * top
+        out[k] = 0.0
+        # the largest first; of equal ones the lower frequency (then the spectrum is tied anyway)
+        best = np.full(count, -1)
+        for j in range(found):
+            p = peaks[j]
+            value = spectrum[p]
+            if not value >= floor:
+                continue
+            for other in range(j):
+                if spectrum[peaks[other]] == value and spectrum[peaks[other]] >= floor:
+                    tied[k] = True
+            for slot in range(count):
+                if best[slot] < 0 or value > spectrum[best[slot]]:
+                    for moved in range(count - 1, slot, -1):
+                        best[moved] = best[moved - 1]
+                    best[slot] = p
+                    break
+        for slot in range(count):
+            if best[slot] >= 0:
+                out[k, 2 * slot] = frequencies[best[slot]]
+                out[k, 2 * slot + 1] = spectrum[best[slot]]
+    return tied
