@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.diagnosis.classifier import FaultClassifier, TrainingConfig
 from ea_gym.diagnosis.database import DatabaseConfig
 from ea_gym.diagnosis.features import VARIANTS
 from ea_gym.diagnosis.training import (
@@ -186,3 +186,25 @@ def test_single_threaded_torch_restores_the_thread_count() -> None:
     with single_threaded_torch():
         assert torch.get_num_threads() == 1
     assert torch.get_num_threads() == before
+
+
+def test_predict_proba_is_the_network_modules_forward_to_the_bit(trained: IsolationTraining) -> None:
+    import torch
+
+    features = trained.database.features["strong"]
+    shipped = load_shipped_classifier("spring_mass_damper", "strong")
+    for classifier in (trained.classifiers["strong"], shipped):
+        inputs = torch.from_numpy((features - classifier.mean) / classifier.scale)
+        with torch.no_grad():
+            by_modules = torch.softmax(classifier.network(inputs), dim=1).numpy()
+        assert classifier.predict_proba(features).tobytes() == by_modules.tobytes()
+        with torch.no_grad():  # one row (a single environment's batch)
+            one = torch.softmax(classifier.network(inputs[3:4]), dim=1).numpy()
+        assert classifier.predict_proba(features[3:4]).tobytes() == one.tobytes()
+    # training anew replaces the network: inference follows it
+    retrained = FaultClassifier(shipped.classes, "strong", shipped.n_features)
+    retrained.predict_proba(features[:1])
+    retrained.fit(features, trained.database.labels, (features, trained.database.labels), np.random.default_rng(1), TrainingConfig(epochs=3))
+    inputs = torch.from_numpy((features - retrained.mean) / retrained.scale)
+    with torch.no_grad():
+        assert retrained.predict_proba(features).tobytes() == torch.softmax(retrained.network(inputs), dim=1).numpy().tobytes()

@@ -63,6 +63,18 @@ def _layers(n_features: int, hidden: Sequence[int], n_classes: int) -> nn.Sequen
     return nn.Sequential(*layers).double()
 
 
+def _forward(linear: Sequence[tuple[torch.Tensor, torch.Tensor]], x: torch.Tensor) -> torch.Tensor:
+    """The network of ``_layers`` (tanh between its linear layers, given as (weight, bias)) on x: its module
+    forward's arithmetic (the same functional calls) without the modules' call overhead."""
+    import torch
+    from torch.nn.functional import linear as affine
+
+    for weight, bias in linear[:-1]:
+        x = torch.tanh(affine(x, weight, bias))
+    weight, bias = linear[-1]
+    return affine(x, weight, bias)
+
+
 class FaultClassifier:
     """Class probabilities over ``classes`` (e.g. ["none", "k", "m", "b"]) from feature vectors.
 
@@ -87,6 +99,8 @@ class FaultClassifier:
         # the weights as read from a file, until the network is built from them
         self._weights = weights
         self._network: nn.Sequential | None = None
+        # the network's linear layers' (weight, bias), detached, for inference; rebuilt when the network is
+        self._linear: tuple[nn.Sequential, list[tuple[torch.Tensor, torch.Tensor]]] | None = None
 
     @property
     def n_features(self) -> int:
@@ -170,7 +184,16 @@ class FaultClassifier:
         import torch
 
         with torch.no_grad(), single_threaded_torch():
-            return torch.softmax(self.network(self._inputs(features)), dim=1).numpy()
+            return torch.softmax(_forward(self._linear_layers(), self._inputs(features)), dim=1).numpy()
+
+    def _linear_layers(self) -> list[tuple[torch.Tensor, torch.Tensor]]:
+        """The network's linear layers' (weight, bias), detached (sharing the parameters' storage)."""
+        from torch import nn
+
+        network = self.network
+        if self._linear is None or self._linear[0] is not network:
+            self._linear = (network, [(m.weight.detach(), m.bias.detach()) for m in network if isinstance(m, nn.Linear)])
+        return self._linear[1]
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write weights, standardisation and metadata as safetensors (atomically)."""
