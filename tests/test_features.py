@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
-from ea_gym._kernels.features import numpy_sum, spectrum_peaks, summation_scratch
+from ea_gym._kernels.features import spectrum_peaks
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, balance_deviation, frame_features, residual_spectrogram, spectral_peaks
 from ea_gym.numerics import TINY
 

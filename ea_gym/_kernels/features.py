@@ -1,8 +1,8 @@
 """The isolation features' compiled steps (``ea_gym.diagnosis.features``): a frame's EA sums read straight
 from the frame's rows (no copy of the frame), and the largest peaks of every spectrum.
 
-Every sum is numpy's: :func:`numpy_sum` adds as ``np.sum`` does along a contiguous axis (pairwise, eight
-accumulators), so that the features equal the plain numpy form of their definition to the bit.
+Every sum is numpy's (:func:`~ea_gym._kernels.summation.numpy_sum`), so that the features equal the
+plain numpy form of their definition to the bit.
 """
 
 from __future__ import annotations
@@ -10,79 +10,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.numerics import TINY
-
-#: numpy's pairwise summation: blocks up to this length are summed with eight accumulators
-_BLOCK = 128
-
-
-@numba.njit(cache=True)
-def _block_sum(values: np.ndarray, start: int, count: int) -> float:
-    """numpy's sum of a block of up to ``_BLOCK`` values: in order below 8, else eight interleaved accumulators."""
-    if count < 8:
-        total = -0.0
-        for i in range(start, start + count):
-            total += values[i]
-        return total
-    r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
-    r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
-    i = start + 8
-    blocks = start + count - count % 8
-    while i < blocks:
-        r0 += values[i]
-        r1 += values[i + 1]
-        r2 += values[i + 2]
-        r3 += values[i + 3]
-        r4 += values[i + 4]
-        r5 += values[i + 5]
-        r6 += values[i + 6]
-        r7 += values[i + 7]
-        i += 8
-    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    for j in range(i, start + count):
-        total += values[j]
-    return total
-
-
-@numba.njit(cache=True)
-def summation_scratch() -> tuple[np.ndarray, np.ndarray]:
-    """The working space of :func:`numpy_sum` (pending blocks, partial sums): one for any number of sums."""
-    return np.empty((128, 3), dtype=np.int64), np.empty(64)
-
-
-@numba.njit(cache=True)
-def numpy_sum(values: np.ndarray, start: int, stop: int, scratch: tuple[np.ndarray, np.ndarray]) -> float:
-    """``np.sum(values[start:stop])`` of a 1-D float64 array, to the bit.
-
-    numpy halves a run longer than ``_BLOCK`` (the first half a multiple of 8) and adds the halves'
-    sums, recursively; the recursion is unrolled on ``scratch`` (numba's cache cannot hold a recursive
-    function). The total is added to the sum's identity 0, as numpy's reduction does.
-    """
-    count = stop - start
-    if count <= _BLOCK:
-        return 0.0 + _block_sum(values, start, count)
-    tasks, partial = scratch
-    # a task is (start, count, 0) to sum a run, or (0, 0, 1) to add the last two partial sums
-    tasks[0, 0], tasks[0, 1], tasks[0, 2] = start, count, 0
-    pending, done = 1, 0
-    while pending:
-        pending -= 1
-        first, length, add = tasks[pending, 0], tasks[pending, 1], tasks[pending, 2]
-        if add:
-            done -= 1
-            partial[done - 1] += partial[done]
-        elif length <= _BLOCK:
-            partial[done] = _block_sum(values, first, length)
-            done += 1
-        else:
-            half = length // 2
-            half -= half % 8
-            # popped in reverse: the first half, the second, then their sum
-            tasks[pending, 0], tasks[pending, 1], tasks[pending, 2] = 0, 0, 1
-            tasks[pending + 1, 0], tasks[pending + 1, 1], tasks[pending + 1, 2] = first + half, length - half, 0
-            tasks[pending + 2, 0], tasks[pending + 2, 1], tasks[pending + 2, 2] = first, half, 0
-            pending += 3
-    return 0.0 + partial[0]
 
 
 @numba.njit(cache=True)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ea_gym._kernels.isolation import balance_sums, chi_squares, pseudo_inverse_factors
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor
@@ -28,6 +29,10 @@ from ea_gym.phm.history import MonitorHistory, rows_of
 
 if TYPE_CHECKING:
     from ea_gym.phm.config import PHMConfig
+
+
+#: the pseudo-inverse's cut: singular values below it relative to the largest count as zero
+_PINV_RCOND = 1e-12
 
 
 def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, windows: np.ndarray, columns: np.ndarray) -> np.ndarray:
@@ -47,18 +52,12 @@ def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, 
         columns: each degradable parameter's component column, -1 for one that is no component's: such
             a hypothesis cannot be judged by the balance and gets the smallest chi-square (no evidence).
     """
-    C = gram.shape[-1]
     # a pseudo-inverse: a component the span barely excites drops out instead of taking a ridge's bias
-    explained = np.einsum("ni,nij,nj->n", cross, np.linalg.pinv(gram, rcond=1e-12, hermitian=True), cross)
-    variance = np.maximum(square - explained, TINY) / np.maximum(windows - C, 1)
-    diagonal = np.diagonal(gram, axis1=-2, axis2=-1)
-    single = cross**2 / np.maximum(diagonal, TINY)  # explained by one column alone
-    chi2 = np.empty((len(square), 1 + len(columns)))
-    chi2[:, 0] = explained
-    chi2[:, 1:] = explained[:, None] - np.where(columns >= 0, single[:, columns], explained[:, None])
-    chi2 = np.maximum(chi2, 0.0) / variance[:, None]
-    chi2[:, 1:] = np.where(columns >= 0, chi2[:, 1:], chi2.min(1, keepdims=True))
-    return chi2
+    # (numpy's pinv, hermitian: its eigendecomposition and product are numpy's, the steps between compiled)
+    left, right_t, tied = pseudo_inverse_factors(*np.linalg.eigh(gram), _PINV_RCOND)
+    inverse = np.linalg.pinv(gram, rcond=_PINV_RCOND, hermitian=True) if tied else np.matmul(left, right_t.transpose(0, 2, 1))
+    explained = np.einsum("ni,nij,nj->n", cross, inverse, cross)
+    return chi_squares(gram, cross, square, windows, explained, columns)
 
 
 @dataclass(frozen=True)
@@ -186,10 +185,8 @@ class Isolation:
         if len(rows) == 0:
             return evidence
         span = self.evidence_steps
-        chi2 = balance_chi_square(
-            history.gram[rows, ..., -span:].sum(-1), history.cross[rows, ..., -span:].sum(-1), history.balance_square[rows].sum(-1),
-            np.minimum(history.steps[rows], span) * self.balance_windows_per_step, self.balance_column,
-        )
+        gram, cross, square = balance_sums(history.gram, history.cross, history.balance_square, rows, span)
+        chi2 = balance_chi_square(gram, cross, square, np.minimum(history.steps[rows], span) * self.balance_windows_per_step, self.balance_column)
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
         # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
         evidence[rows] = -0.5 * (chi2 - chi2.min(1, keepdims=True)) / self.config.balance_inflation
