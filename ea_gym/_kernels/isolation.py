@@ -104,3 +104,95 @@ def chi_squares(
             if columns[d] < 0:
                 chi2[m, 1 + d] = smallest
     return chi2
+
+
+@numba.njit(cache=True)
+def _largest(a: float, b: float) -> float:
+    """The larger of a running maximum a and b as numpy's max reduces (NaN propagates)."""
+    return a if (a >= b or a != a) else b
+
+
+@numba.njit(cache=True)
+def belief_inputs(
+    average: np.ndarray, log_evidence: np.ndarray, alarm: np.ndarray, estimator_weight: float, floor: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The fusion's terms before its logarithm, N systems, K classes (``Isolation.fuse``).
+
+    Returns the network's belief plus ``floor`` (N, K) (the network's running ``average`` normalised,
+    uniform before its first frame), the estimator's weighted log evidence relative to its best
+    finite class (0 where not finite) (N, K), and whether a system has a belief (N,): alarm raised,
+    and a fault class fitted or a network frame seen.
+    """
+    N, K = average.shape
+    network, evidence, believed = np.empty((N, K)), np.empty((N, K)), np.empty(N, dtype=np.bool_)
+    scratch = summation_scratch()
+    for n in range(N):
+        total = numpy_sum(average[n], 0, K, scratch)
+        best = -np.inf
+        fitted = False
+        for k in range(K):
+            network[n, k] = (average[n, k] / total if total > 0 else 1.0 / K) + floor
+            if np.isfinite(log_evidence[n, k]):
+                best = _largest(best, log_evidence[n, k])
+                fitted |= k > 0
+        for k in range(K):
+            weighted = estimator_weight * (log_evidence[n, k] - best)
+            evidence[n, k] = weighted if np.isfinite(weighted) else 0.0
+        believed[n] = alarm[n] and (fitted or total > 0)
+    return network, evidence, believed
+
+
+@numba.njit(cache=True)
+def shifted_log_belief(
+    log_network: np.ndarray, evidence: np.ndarray, balance: np.ndarray, network_weight: float, balance_weight: float
+) -> np.ndarray:
+    """The log belief (N, K), each system's largest subtracted: network_weight log_network + evidence + balance_weight balance."""
+    N, K = log_network.shape
+    out = np.empty((N, K))
+    for n in range(N):
+        top = -np.inf
+        for k in range(K):
+            out[n, k] = network_weight * log_network[n, k] + evidence[n, k] + balance_weight * balance[n, k]
+            top = out[n, k] if k == 0 else _largest(top, out[n, k])
+        for k in range(K):
+            out[n, k] -= top
+    return out
+
+
+@numba.njit(cache=True)
+def verdict(
+    belief: np.ndarray, believed: np.ndarray, previous: np.ndarray, estimated: np.ndarray, threshold: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The fused belief's verdict, N systems (``Fusion``): the normalised belief where ``believed`` ("none" = 1
+    elsewhere) (N, K), the suspect (N,), its share of the fault classes' belief (N,), whether that share
+    reaches ``threshold`` (N,), and whether the suspect changed from ``previous`` to one the estimator did
+    not update (``estimated`` (N, K - 1)) (N,)."""
+    N, K = belief.shape
+    diagnosis = np.zeros((N, K))
+    isolated = np.zeros(N, dtype=np.int64)
+    confidence = np.zeros(N)
+    confident = np.zeros(N, dtype=np.bool_)
+    restarted = np.zeros(N, dtype=np.bool_)
+    scratch = summation_scratch()
+    for n in range(N):
+        if not believed[n]:
+            diagnosis[n, 0] = 1.0
+        else:
+            total = numpy_sum(belief[n], 0, K, scratch)
+            for k in range(K):
+                diagnosis[n, k] = belief[n, k] / total
+            # np.argmax over the fault classes: the first largest (the first NaN if any)
+            best = 1
+            for k in range(2, K):
+                if diagnosis[n, best] != diagnosis[n, best]:
+                    break
+                if not diagnosis[n, k] <= diagnosis[n, best]:
+                    best = k
+            isolated[n] = best
+        faults = numpy_sum(diagnosis[n], 1, K, scratch)
+        share = diagnosis[n, isolated[n]] / (TINY if faults < TINY else faults)
+        if isolated[n] > 0:
+            confidence[n] = share
+            confident[n] = share >= threshold
+            restarted[n] = isolated[n] != previous[n] and not estimated[n, isolated[n] - 1]
+    return diagnosis, isolated, confidence, confident, restarted

@@ -19,12 +19,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ea_gym._kernels.isolation import balance_sums, chi_squares, pseudo_inverse_factors
+from ea_gym._kernels.isolation import balance_sums, belief_inputs, chi_squares, pseudo_inverse_factors, shifted_log_belief, verdict
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
-from ea_gym.numerics import TINY
 from ea_gym.phm.history import MonitorHistory, rows_of
 
 if TYPE_CHECKING:
@@ -196,27 +195,19 @@ class Isolation:
         """The belief (N, K) from the network's average, the estimator's log evidence (N, K) and the balance's
         log evidence (N, K); sets the suspect. ``estimated`` (N, D): the hypotheses the estimator updated at this step."""
         s = self.state
-        K = len(self.classes)
-        total = s.probability_average.sum(1, keepdims=True)
-        # before the network's first frame its belief is uniform: the fits alone decide
-        network = np.where(total > 0, s.probability_average / np.where(total > 0, total, 1.0), 1.0 / K)
-        best = np.max(log_evidence, axis=1, initial=-np.inf, where=np.isfinite(log_evidence))
-        evidence = self.weights.estimator * (log_evidence - best[:, None])
-        evidence = np.where(np.isfinite(evidence), evidence, 0.0)  # a hypothesis not yet fitted: no evidence either way
-        # in logs: evidence a thousand nats apart must not underflow every class to 0
-        log_belief = self.weights.network * np.log(network + self.config.network_floor) + evidence + self.weights.balance * balance
-        belief = np.exp(log_belief - log_belief.max(1, keepdims=True))
-        believed = alarm & (np.any(np.isfinite(log_evidence[:, 1:]), axis=1) | (total[:, 0] > 0))
-        diagnosis = np.where(believed[:, None], belief / belief.sum(1, keepdims=True), np.eye(K)[0])
-        isolated = np.where(believed, 1 + np.argmax(diagnosis[:, 1:], axis=1), 0)
-        # a new suspect not estimated at this step has stale estimates: the estimator starts it afresh
-        changed = np.flatnonzero((isolated != s.isolated) & (isolated > 0))
-        changed = changed[~estimated[changed, isolated[changed] - 1]]
-        s.isolated[:] = isolated
-        # the alarm already says there is a fault: confidence is the suspect's share among the fault classes
-        share = diagnosis[np.arange(self.n), isolated] / np.maximum(diagnosis[:, 1:].sum(1), TINY)
-        s.confident[:] = (isolated > 0) & (share >= self.config.isolation_confidence)
-        return Fusion(
-            belief=diagnosis, isolated=isolated, confidence=np.where(isolated > 0, share, 0.0), confident=s.confident.copy(),
-            restarted=changed,
+        # before the network's first frame its belief is uniform: the fits alone decide; a hypothesis
+        # not yet fitted gives no evidence either way
+        network, evidence, believed = belief_inputs(
+            s.probability_average, log_evidence, alarm, self.weights.estimator, self.config.network_floor
         )
+        # in logs: evidence a thousand nats apart must not underflow every class to 0 (numpy's log and
+        # exp, between the compiled steps)
+        belief = np.exp(shifted_log_belief(np.log(network), evidence, balance, self.weights.network, self.weights.balance))
+        # the alarm already says there is a fault: confidence is the suspect's share among the fault
+        # classes; a new suspect not estimated at this step has stale estimates: the estimator restarts it
+        diagnosis, isolated, confidence, confident, restarted = verdict(
+            belief, believed, s.isolated, estimated, self.config.isolation_confidence
+        )
+        s.isolated[:] = isolated
+        s.confident[:] = confident
+        return Fusion(belief=diagnosis, isolated=isolated, confidence=confidence, confident=confident, restarted=np.flatnonzero(restarted))
