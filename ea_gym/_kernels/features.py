@@ -22,15 +22,16 @@ def _relative(numerator: float, denominator: float) -> float:
 
 @numba.njit(cache=True)
 def frame_sums(
-    ea: np.ndarray, ea_reference: np.ndarray, rows: np.ndarray, inertia: int, components: np.ndarray,
-    residual_out: np.ndarray, features: np.ndarray,
+    ea: np.ndarray, ea_reference: np.ndarray, rows: np.ndarray, inertia: int, components: np.ndarray, window: np.ndarray,
+    segment: np.ndarray, features: np.ndarray,
 ) -> np.ndarray:
     """The EA sums of the frames of ``rows`` of ``ea`` and ``ea_reference`` (N, E, F) in J.
 
-    Writes, for the k-th row: residual_out[k] = the I element's residual (EA_real - EA_ref) per
-    sub-window, (F,); features[k, :3 E] = every element's relative residual over the frame, its first
-    half and its second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual.
-    Returns the I element's mean reference EA per sub-window, (M,).
+    Writes, for the k-th row: segment[k] = the I element's residual (EA_real - EA_ref) per sub-window,
+    its mean removed, times ``window`` (F,) (the spectrum's segment, as scipy's ``stft`` makes it);
+    features[k, :3 E] = every element's relative residual over the frame, its first half and its
+    second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual. Returns the
+    I element's mean reference EA per sub-window, (M,).
     """
     E, F = ea.shape[1], ea.shape[2]
     C = len(components)
@@ -50,11 +51,14 @@ def frame_sums(
                 residual[t] = real[t] - reference[t]
             real_total[e] = numpy_sum(real, 0, F, scratch)
             reference_total[e] = numpy_sum(reference, 0, F, scratch)
-            features[k, e] = _relative(numpy_sum(residual, 0, F, scratch), reference_total[e])
+            residual_total = numpy_sum(residual, 0, F, scratch)
+            features[k, e] = _relative(residual_total, reference_total[e])
             features[k, E + e] = _relative(numpy_sum(residual, 0, half, scratch), numpy_sum(reference, 0, half, scratch))
             features[k, 2 * E + e] = _relative(numpy_sum(residual, half, F, scratch), numpy_sum(reference, half, F, scratch))
             if e == inertia:
-                residual_out[k] = residual
+                mean = residual_total / F
+                for t in range(F):
+                    segment[k, t] = window[t] * (residual[t] - mean)
                 scale[k] = reference_total[e] / F
         for c in range(C):
             ea_share[c], reference_share[c] = real_total[components[c]], reference_total[components[c]]

@@ -23,6 +23,8 @@ from ea_gym._kernels.features import frame_sums, spectrum_peaks
 from ea_gym.numerics import TINY
 
 N_PEAKS = 3
+#: the smallest peak kept, relative to the largest: the smaller ones are noise
+MIN_RELATIVE = 0.05
 VARIANTS = ("paper", "strong")
 
 
@@ -70,19 +72,26 @@ def residual_spectrogram(residual: np.ndarray, sub_window: float, frame: int, ho
     scipy's ``stft`` (Hann window, each segment's mean removed, no padding) with its arithmetic and
     none of its checks: the same numbers to the bit, at a fraction of its cost on short series.
     """
-    from scipy import fft
-
     window = hann_window(frame)
     length = residual.shape[-1]
     if hop == frame:  # consecutive segments: a view without sliding_window_view's cost
         segments = residual[..., : length - length % frame].reshape(residual.shape[:-1] + (length // frame, frame))
     else:
         segments = np.lib.stride_tricks.sliding_window_view(residual, frame, axis=-1)[..., ::hop, :]
-    spectrum = fft.rfft(window * (segments - np.mean(segments, axis=-1, keepdims=True)), n=frame, axis=-1)
-    spectrum *= _stft_scale(frame)
+    magnitude = _magnitude(window * (segments - np.mean(segments, axis=-1, keepdims=True)))
     rate = 1.0 / sub_window
     times = np.arange(frame / 2, length - frame / 2 + 1, hop) / rate
-    return _frequencies(frame, rate), times, np.moveaxis(np.abs(spectrum), -1, -2)
+    return _frequencies(frame, rate), times, np.moveaxis(magnitude, -1, -2)
+
+
+def _magnitude(segments: np.ndarray) -> np.ndarray:
+    """|STFT| of segments (..., frame) already detrended and windowed (Hann): scipy's scale, one-sided."""
+    from scipy import fft
+
+    frame = segments.shape[-1]
+    spectrum = fft.rfft(segments, n=frame, axis=-1)
+    spectrum *= _stft_scale(frame)
+    return np.abs(spectrum)
 
 
 @cache
@@ -102,7 +111,7 @@ def _frequencies(frame: int, rate: float) -> np.ndarray:
 
 
 def spectral_peaks(
-    residual: np.ndarray, sub_window: float, scale: np.ndarray, max_frequency: float, min_relative: float = 0.05
+    residual: np.ndarray, sub_window: float, scale: np.ndarray, max_frequency: float, min_relative: float = MIN_RELATIVE
 ) -> np.ndarray:
     """Frequencies (Hz) and relative amplitudes of the N_PEAKS largest peaks of each residual's spectrum.
 
@@ -118,8 +127,12 @@ def spectral_peaks(
         (N, 2 N_PEAKS): [f_1, a_1, f_2, a_2, ...], largest first.
     """
     frequencies, _, magnitude = residual_spectrogram(residual, sub_window, residual.shape[-1], residual.shape[-1])
-    magnitude = magnitude[..., 0] / np.maximum(scale, TINY)[:, None]
-    out = np.empty((len(residual), 2 * N_PEAKS))
+    return _peak_table(magnitude[..., 0] / np.maximum(scale, TINY)[:, None], frequencies, max_frequency, min_relative)
+
+
+def _peak_table(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float) -> np.ndarray:
+    """``spectral_peaks`` of spectra (N, P) already divided by their scale."""
+    out = np.empty((len(magnitude), 2 * N_PEAKS))
     tied = spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, out)
     # a flat top (equal neighbours) or equal peaks: scipy's plateau rule and its sort's order decide, row by row
     for row in np.flatnonzero(tied):
@@ -161,11 +174,13 @@ def frame_features(frame: Frame, variant: str, max_frequency: float = 2.0, rows:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     rows = np.arange(len(frame.ea)) if rows is None else rows
     E, F = frame.ea.shape[1:]
-    residual = np.empty((len(rows), F))
+    segment = np.empty((len(rows), F))
     sums = np.empty((len(rows), 3 * E + len(frame.component_index)))
-    # every element's relative residual over the frame and its halves, the components' EAI residual
-    reference_mean = frame_sums(frame.ea, frame.ea_reference, rows, frame.inertia_index, frame.component_index, residual, sums)
-    peaks = spectral_peaks(residual, frame.sub_window, reference_mean, max_frequency)
+    # every element's relative residual over the frame and its halves, the components' EAI residual, and the
+    # I element's residual as the spectrum's one segment (spectral_peaks' arithmetic, read in place)
+    reference_mean = frame_sums(frame.ea, frame.ea_reference, rows, frame.inertia_index, frame.component_index, hann_window(F), segment, sums)
+    magnitude = _magnitude(segment) / np.maximum(reference_mean, TINY)[:, None]
+    peaks = _peak_table(magnitude, _frequencies(F, 1.0 / frame.sub_window), max_frequency, MIN_RELATIVE)
     if variant == "paper":
         return peaks
     beta = balance_deviation(frame.gram[rows], frame.cross[rows])
