@@ -3,7 +3,7 @@ chi-square (``np.linalg.pinv``, ``np.sum``) and the fusion of the evidence."""
 
 import numpy as np
 
-from ea_gym._kernels.isolation import balance_sums, pseudo_inverse_factors
+from ea_gym._kernels.isolation import history_sums, pseudo_inverse_factors
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.models import spring_mass_damper
 from ea_gym.numerics import TINY
@@ -58,13 +58,13 @@ def test_pseudo_inverse_factors_multiply_to_numpys_pinv():
     assert np.matmul(left, right_t.transpose(0, 2, 1)).tobytes() == np.linalg.pinv(gram, rcond=1e-12, hermitian=True).tobytes()
 
 
-def test_balance_sums_equal_numpys_sums_of_the_rows_windows():
+def test_history_sums_equal_numpys_sums_of_the_rows_windows():
     rng = np.random.default_rng(10)
     backing = rng.normal(size=(6, 3, 3, 40))
-    gram, cross, square = backing[..., 7:27], rng.normal(size=(6, 3, 40))[..., 13:33], rng.normal(size=(6, 10))
+    gram, cross, other = backing[..., 7:27], rng.normal(size=(6, 3, 40))[..., 13:33], rng.normal(size=(6, 4, 30))[..., 5:25]
     rows = np.array([5, 0, 3])
-    sums = balance_sums(gram, cross, square, rows, 10)
-    expected = gram[rows, ..., -10:].sum(-1), cross[rows, ..., -10:].sum(-1), square[rows].sum(-1)
+    sums = history_sums(gram, cross, other, rows, 10)
+    expected = gram[rows, ..., -10:].sum(-1), cross[rows, ..., -10:].sum(-1), other[rows].sum(-1)
     for got, want in zip(sums, expected):
         assert got.tobytes() == want.tobytes()
 

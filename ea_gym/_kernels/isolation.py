@@ -1,6 +1,6 @@
-"""The balance evidence's compiled steps (``ea_gym.phm.isolation``): the regression sums of the evidence
-span read from the history's rows, numpy's pseudo-inverse around its eigendecomposition and matrix
-product (which stay numpy's), and the classes' chi-squares.
+"""The isolation's compiled steps (``ea_gym.phm.isolation``): the frame's and the balance evidence's sums
+read from the history's rows, numpy's pseudo-inverse around its eigendecomposition and matrix product
+(which stay numpy's), the classes' chi-squares, and the fusion of the evidence around numpy's log and exp.
 
 Each step repeats the arithmetic of the numpy form it replaces (``np.sum``, ``np.linalg.pinv`` with
 ``hermitian=True``, the chi-square's element-wise formula) in the same order, so that the numbers are
@@ -17,13 +17,13 @@ from ea_gym.numerics import TINY
 
 
 @numba.njit(cache=True)
-def balance_sums(
-    gram: np.ndarray, cross: np.ndarray, square: np.ndarray, rows: np.ndarray, span: int
+def history_sums(
+    gram: np.ndarray, cross: np.ndarray, other: np.ndarray, rows: np.ndarray, span: int
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The sums over the last ``span`` steps of gram (N, C, C, R) and cross (N, C, R), and over every step of
-    square (N, V), for ``rows``: (M, C, C), (M, C), (M,)."""
-    M, C, R = len(rows), gram.shape[1], gram.shape[-1]
-    gram_sum, cross_sum, square_sum = np.empty((M, C, C)), np.empty((M, C)), np.empty(M)
+    """The sums over the last ``span`` steps of the history's gram (N, C, C, R) and cross (N, C, R), and over
+    every step of another history (N, X, V), for ``rows``: (M, C, C), (M, C), (M, X)."""
+    M, C, R, X = len(rows), gram.shape[1], gram.shape[-1], other.shape[1]
+    gram_sum, cross_sum, other_sum = np.empty((M, C, C)), np.empty((M, C)), np.empty((M, X))
     scratch = summation_scratch()
     for k in range(M):
         n = rows[k]
@@ -31,8 +31,9 @@ def balance_sums(
             for j in range(C):
                 gram_sum[k, i, j] = numpy_sum(gram[n, i, j], R - span, R, scratch)
             cross_sum[k, i] = numpy_sum(cross[n, i], R - span, R, scratch)
-        square_sum[k] = numpy_sum(square[n], 0, square.shape[1], scratch)
-    return gram_sum, cross_sum, square_sum
+        for x in range(X):
+            other_sum[k, x] = numpy_sum(other[n, x], 0, other.shape[2], scratch)
+    return gram_sum, cross_sum, other_sum
 
 
 @numba.njit(cache=True)

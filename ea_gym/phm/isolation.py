@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ea_gym._kernels.isolation import balance_sums, belief_inputs, chi_squares, pseudo_inverse_factors, shifted_log_belief, verdict
+from ea_gym._kernels.isolation import belief_inputs, chi_squares, history_sums, pseudo_inverse_factors, shifted_log_belief, verdict
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor
@@ -165,10 +165,10 @@ class Isolation:
         counted = np.flatnonzero(self.counted(history, alarm))
         if len(counted):
             # the frame of every system, read in place from the history; the features of the counted ones
-            steps = self.frame_steps
-            frame = self.monitor.frame_of(
-                history.ea, history.ea_reference, history.gram[..., -steps:].sum(-1), history.cross[..., -steps:].sum(-1), history.noise.sum(-1),
-            )
+            n, _, states, steps = history.noise.shape
+            noise_sums = history.noise.reshape(n, 2 * states, steps)
+            gram, cross, noise = history_sums(history.gram, history.cross, noise_sums, np.arange(n), self.frame_steps)
+            frame = self.monitor.frame_of(history.ea, history.ea_reference, gram, cross, noise.reshape(n, 2, states))
             features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth, counted)
             probabilities[counted] = self.classifier.predict_proba(features)
         # an exponential average over the frames since the alarm: later frames, with the fault grown,
@@ -184,8 +184,9 @@ class Isolation:
         if len(rows) == 0:
             return evidence
         span = self.evidence_steps
-        gram, cross, square = balance_sums(history.gram, history.cross, history.balance_square, rows, span)
-        chi2 = balance_chi_square(gram, cross, square, np.minimum(history.steps[rows], span) * self.balance_windows_per_step, self.balance_column)
+        gram, cross, square = history_sums(history.gram, history.cross, history.balance_square[:, None], rows, span)
+        windows = np.minimum(history.steps[rows], span) * self.balance_windows_per_step
+        chi2 = balance_chi_square(gram, cross, square[:, 0], windows, self.balance_column)
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
         # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
         evidence[rows] = -0.5 * (chi2 - chi2.min(1, keepdims=True)) / self.config.balance_inflation
