@@ -7,7 +7,7 @@ from scipy.signal import find_peaks
 
 from ea_gym._kernels.features import spectrum_peaks
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
-from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, balance_deviation, frame_features, residual_spectrogram, spectral_peaks
+from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, frame_features, residual_spectrogram, spectral_peaks
 from ea_gym.numerics import TINY
 
 
@@ -81,7 +81,10 @@ def features_by_definition(frame, variant, max_frequency):
     ]
     ea_c, ref_c = frame.ea[:, frame.component_index].sum(-1), frame.ea_reference[:, frame.component_index].sum(-1)
     eai = ea_c / np.maximum(ea_c.sum(-1, keepdims=True), TINY) - ref_c / np.maximum(ref_c.sum(-1, keepdims=True), TINY)
-    return np.concatenate([*relative, eai, balance_deviation(frame.gram, frame.cross), frame.noise, peaks], axis=-1)
+    eye = np.eye(frame.gram.shape[-1])
+    ridge = 1e-9 * np.trace(frame.gram, axis1=-2, axis2=-1)[..., None, None] * eye
+    beta = np.clip(np.linalg.solve(frame.gram + ridge + TINY * eye, frame.cross[..., None])[..., 0], -1.0, 1.0)
+    return np.concatenate([*relative, eai, beta, frame.noise, peaks], axis=-1)
 
 
 def random_frame(rng, n, elements=4, length=200, offset=37):
@@ -92,6 +95,7 @@ def random_frame(rng, n, elements=4, length=200, offset=37):
     backing[1, 2, 2, :length] = backing[0, 2, 2, :length]  # no residual at all
     ea, reference = backing[..., offset : offset + length]
     gram = rng.normal(size=(n, 3, 5))
+    gram[0] = 0.0  # no excitation: the ridge alone
     return Frame(
         ea=ea, ea_reference=reference, gram=gram @ gram.transpose(0, 2, 1), cross=rng.normal(size=(n, 3)),
         noise=rng.uniform(0, 0.1, (n, 2)), sub_window=0.25, component_index=np.array([0, 2, 3]), inertia_index=2,

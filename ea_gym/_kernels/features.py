@@ -114,3 +114,22 @@ def spectrum_peaks(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency
                 out[k, 2 * slot] = frequencies[best[slot]]
                 out[k, 2 * slot + 1] = spectrum[best[slot]]
     return tied
+
+
+@numba.njit(cache=True)
+def ridge_system(gram: np.ndarray, relative: float) -> np.ndarray:
+    """gram (M, C, C) with (relative x its trace + TINY) added on the diagonal, as numpy adds it: gram plus
+    ``relative`` trace times the identity, then TINY times the identity (the off-diagonal zeros added too)."""
+    M, C = gram.shape[0], gram.shape[1]
+    out = np.empty((M, C, C))
+    diagonal = np.empty(C)
+    scratch = summation_scratch()
+    for k in range(M):
+        for c in range(C):
+            diagonal[c] = gram[k, c, c]
+        ridge = relative * numpy_sum(diagonal, 0, C, scratch)
+        for i in range(C):
+            for j in range(C):
+                identity = 1.0 if i == j else 0.0
+                out[k, i, j] = (gram[k, i, j] + ridge * identity) + TINY * identity
+    return out

@@ -19,7 +19,7 @@ from functools import cache
 
 import numpy as np
 
-from ea_gym._kernels.features import frame_sums, spectrum_peaks
+from ea_gym._kernels.features import frame_sums, ridge_system, spectrum_peaks
 from ea_gym.numerics import TINY
 
 N_PEAKS = 3
@@ -160,10 +160,9 @@ def balance_deviation(gram: np.ndarray, cross: np.ndarray, limit: float = 1.0) -
     """Least-squares beta of the power-balance residual on the component powers, clipped to [-limit, limit].
 
     beta_i estimates the relative deviation of component i's constitutive coefficient; a small ridge
-    keeps it finite when a component is barely excited.
+    keeps it finite when a component is barely excited. gram (M, C, C), cross (M, C); returns (M, C).
     """
-    ridge = 1e-9 * np.trace(gram, axis1=-2, axis2=-1)[..., None, None] * np.eye(gram.shape[-1])
-    beta = np.linalg.solve(gram + ridge + TINY * np.eye(gram.shape[-1]), cross[..., None])[..., 0]
+    beta = np.linalg.solve(ridge_system(gram, 1e-9), cross[..., None])[..., 0]
     return np.clip(beta, -limit, limit)
 
 
