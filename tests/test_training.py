@@ -223,3 +223,13 @@ def test_the_train_command_refuses_a_non_empty_out_it_does_not_continue(tmp_path
     error = capsys.readouterr().err
     assert error.count("\n") == 1 and "--out: " in error and "exists and is not empty" in error
     assert [path.name for path in tmp_path.iterdir()] == ["out"] and _files(out) == {"notes.txt": b"kept"}
+
+
+def test_a_new_ppo_policys_rollout_is_one_whole_episode_of_every_environment():
+    from agents.training import hyperparameters
+
+    # the environments start together and every episode lasts the horizon (500 steps by default)
+    assert hyperparameters(TrainingRun())["n_steps"] == 500
+    assert hyperparameters(TrainingRun(env_kwargs={"horizon": 50}, n_envs=4))["n_steps"] == 50
+    assert hyperparameters(TrainingRun(hyperparameters={"n_steps": 128}))["n_steps"] == 128  # a run's own setting wins
+    assert hyperparameters(TrainingRun(teacher="oracle", n_envs=16))["n_steps"] == 256  # a clone's fine-tuning keeps 4096 // n_envs
