@@ -15,6 +15,7 @@ from __future__ import annotations
 import importlib.util
 import shutil
 import time
+import warnings
 from collections.abc import Callable, Mapping
 from dataclasses import asdict, dataclass, field
 from functools import partial
@@ -315,7 +316,11 @@ def make_model(
     normalized = normalize(env)
     policy: Any = "MultiInputPolicy" if stored is None else stored.policy_class
     policy_kwargs = None if stored is None else stored.policy_kwargs
-    model = ALGORITHMS[run.algo](policy, normalized, seed=run.seed, verbose=0, tensorboard_log=tensorboard, policy_kwargs=policy_kwargs, **settings)
+    with warnings.catch_warnings():
+        # rollouts of whole episodes (16 x 500 steps) are not a multiple of the minibatch: each pass ends on a smaller one, as intended
+        warnings.filterwarnings("ignore", message="You have specified a mini-batch size", category=UserWarning)
+        model = ALGORITHMS[run.algo](policy, normalized, seed=run.seed, verbose=0, tensorboard_log=tensorboard, policy_kwargs=policy_kwargs,
+                                     **settings)
     if stored is None and run.initial_carry_on is not None and isinstance(model.policy, ActorCriticPolicy):
         meanings, core = env.get_attr("action_meanings")[0], env.get_attr("core")[0]
         start_from(model.policy, initial_probabilities(meanings, core.config.costs, run.initial_carry_on))

@@ -233,3 +233,11 @@ def test_a_new_ppo_policys_rollout_is_one_whole_episode_of_every_environment():
     assert hyperparameters(TrainingRun(env_kwargs={"horizon": 50}, n_envs=4))["n_steps"] == 50
     assert hyperparameters(TrainingRun(hyperparameters={"n_steps": 128}))["n_steps"] == 128  # a run's own setting wins
     assert hyperparameters(TrainingRun(teacher="oracle", n_envs=16))["n_steps"] == 256  # a clone's fine-tuning keeps 4096 // n_envs
+
+
+def test_the_default_rollout_of_whole_episodes_makes_a_model_without_a_minibatch_warning(recwarn):
+    from agents.training import hyperparameters, make_model
+
+    run = TrainingRun(obs_mode="oracle", n_envs=2, env_kwargs={"horizon": 50})  # rollouts of 2 x 50 steps, minibatches of 256
+    model, _ = make_model(run, make_vec_env(run, run.n_envs, 0, shaped=True), hyperparameters(run), None, None, None)
+    assert model.n_steps == 50 and not [w for w in recwarn if "mini-batch" in str(w.message)]
