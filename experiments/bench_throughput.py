@@ -166,8 +166,8 @@ def measure(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, 
 STAGES = (
     ("tracking filters", ("_kernels/tracking", "phm/tracking")),
     ("isolation network", ("torch/", "diagnosis/classifier")),
-    ("isolation features", ("diagnosis/features", "scipy/signal")),
-    ("balance evidence and fusion", ("phm/isolation",)),
+    ("isolation features", ("diagnosis/features", "_kernels/features", "_kernels/summation", "scipy/signal", "scipy/fft")),
+    ("balance evidence and fusion", ("phm/isolation", "_kernels/isolation")),
     ("monitor (EA, detection)", (
         "_kernels/monitor", "diagnosis/monitor", "_kernels/activity", "_kernels/smoothing", "phm/detection", "phm/history", "_kernels/detection",
         "_kernels/history",
