@@ -188,7 +188,7 @@ def test_single_threaded_torch_restores_the_thread_count() -> None:
     assert torch.get_num_threads() == before
 
 
-def test_predict_proba_is_the_network_modules_forward_to_the_bit(trained: IsolationTraining) -> None:
+def test_predict_proba_is_the_network_modules_forward_and_each_row_its_own(trained: IsolationTraining) -> None:
     import torch
 
     features = trained.database.features["strong"]
@@ -197,14 +197,28 @@ def test_predict_proba_is_the_network_modules_forward_to_the_bit(trained: Isolat
         inputs = torch.from_numpy((features - classifier.mean) / classifier.scale)
         with torch.no_grad():
             by_modules = torch.softmax(classifier.network(inputs), dim=1).numpy()
-        assert classifier.predict_proba(features).tobytes() == by_modules.tobytes()
-        with torch.no_grad():  # one row (a single environment's batch)
-            one = torch.softmax(classifier.network(inputs[3:4]), dim=1).numpy()
-        assert classifier.predict_proba(features[3:4]).tobytes() == one.tobytes()
+        batch = classifier.predict_proba(features)
+        np.testing.assert_allclose(batch, by_modules, rtol=1e-12, atol=1e-15)
+        # a row alone (a single environment's) and among the others (a batch of alarmed systems): the same bits
+        alone = np.concatenate([classifier.predict_proba(features[i : i + 1]) for i in range(len(features))])
+        assert alone.tobytes() == batch.tobytes()
     # training anew replaces the network: inference follows it
     retrained = FaultClassifier(shipped.classes, "strong", shipped.n_features)
     retrained.predict_proba(features[:1])
     retrained.fit(features, trained.database.labels, (features, trained.database.labels), np.random.default_rng(1), TrainingConfig(epochs=3))
     inputs = torch.from_numpy((features - retrained.mean) / retrained.scale)
     with torch.no_grad():
-        assert retrained.predict_proba(features).tobytes() == torch.softmax(retrained.network(inputs), dim=1).numpy().tobytes()
+        np.testing.assert_allclose(retrained.predict_proba(features), torch.softmax(retrained.network(inputs), dim=1).numpy(), rtol=1e-12, atol=1e-15)
+
+
+def test_mlp_probabilities_by_hand() -> None:
+    from ea_gym._kernels.network import mlp_probabilities
+
+    # one hidden unit: h = tanh(1 * x0 - 1 * x1 + 0.5); logits (2h, -h + 1)
+    weights = (np.array([[1.0], [-1.0]]), np.array([[2.0, -1.0]]))
+    biases = (np.array([0.5]), np.array([0.0, 1.0]))
+    x = np.array([[0.25, 1.0], [0.0, 0.0]])
+    h = np.tanh(x[:, 0] - x[:, 1] + 0.5)
+    logits = np.stack([2 * h, -h + 1], axis=1)
+    expected = np.exp(logits) / np.exp(logits).sum(axis=1, keepdims=True)
+    np.testing.assert_allclose(mlp_probabilities(x, weights, biases), expected, rtol=1e-15)

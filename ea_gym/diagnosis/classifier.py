@@ -1,8 +1,9 @@
 """The fault-isolation network: a small torch MLP over frame features, with its own standardisation.
 
 Saved as safetensors (the weights and the standardisation as float64 arrays, classes, variant and layer
-widths in its metadata) and read with ``safetensors.numpy``, so that a file cannot run code and loading
-needs no torch: torch is imported when the network first runs (a chain only runs it after an alarm).
+widths in its metadata) and read with ``safetensors.numpy``, so that a file cannot run code. Loading and
+inference need no torch (the forward pass is compiled, ``ea_gym._kernels.network``): torch is imported to
+train a network, or to read an older file.
 Files written by ``torch.save`` (a zip of tensors) are read with ``torch.load(..., weights_only=True)``.
 """
 
@@ -63,18 +64,6 @@ def _layers(n_features: int, hidden: Sequence[int], n_classes: int) -> nn.Sequen
     return nn.Sequential(*layers).double()
 
 
-def _forward(linear: Sequence[tuple[torch.Tensor, torch.Tensor]], x: torch.Tensor) -> torch.Tensor:
-    """The network of ``_layers`` (tanh between its linear layers, given as (weight, bias)) on x: its module
-    forward's arithmetic (the same functional calls) without the modules' call overhead."""
-    import torch
-    from torch.nn.functional import linear as affine
-
-    for weight, bias in linear[:-1]:
-        x = torch.tanh(affine(x, weight, bias))
-    weight, bias = linear[-1]
-    return affine(x, weight, bias)
-
-
 class FaultClassifier:
     """Class probabilities over ``classes`` (e.g. ["none", "k", "m", "b"]) from feature vectors.
 
@@ -99,8 +88,9 @@ class FaultClassifier:
         # the weights as read from a file, until the network is built from them
         self._weights = weights
         self._network: nn.Sequential | None = None
-        # the network's linear layers' (weight, bias), detached, for inference; rebuilt when the network is
-        self._linear: tuple[nn.Sequential, list[tuple[torch.Tensor, torch.Tensor]]] | None = None
+        # the linear layers' weights (transposed) and biases as numpy arrays, for inference; rebuilt when
+        # the network is trained anew
+        self._inference: tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]] | None = None
 
     @property
     def n_features(self) -> int:
@@ -118,15 +108,18 @@ class FaultClassifier:
                 self._weights = None
         return self._network
 
-    def _inputs(self, features: np.ndarray) -> torch.Tensor:
-        import torch
-
+    def _standardized(self, features: np.ndarray) -> np.ndarray:
         features = np.asarray(features, dtype=float)
         if features.ndim != 2 or features.shape[1] != self.n_features:
             raise ValueError(f"features must have shape (n, {self.n_features}), got {features.shape}")
         if not np.isfinite(features).all():
             raise ValueError("features contain NaN or inf")
-        return torch.from_numpy((features - self.mean) / self.scale)
+        return (features - self.mean) / self.scale
+
+    def _inputs(self, features: np.ndarray) -> torch.Tensor:
+        import torch
+
+        return torch.from_numpy(self._standardized(features))
 
     def fit(
         self,
@@ -172,29 +165,33 @@ class FaultClassifier:
                 best, best_state = accuracy, {k: v.clone() for k, v in self.network.state_dict().items()}
         if best_state is not None:  # None only after no epoch
             self.network.load_state_dict(best_state)
+        self._inference = None  # inference reads the new weights
         return {"validation_accuracy": best, "final_loss": float(loss.detach())}
 
     def predict_proba(self, features: np.ndarray) -> np.ndarray:
-        """Class probabilities, (n, n_classes).
+        """Class probabilities, (n, n_classes): the network's forward and softmax, compiled
+        (``ea_gym._kernels.network``), within ~1e-15 of torch's. Each row's probabilities are the same
+        to the bit whatever rows come with it (a single environment's row and the same row in a batch),
+        which torch's batched matrix product does not promise. Needs no torch for a network read from a
+        file."""
+        from ea_gym._kernels.network import mlp_probabilities
 
-        On one torch thread: a second gains nothing on a network this small and, on a loaded machine,
-        makes a forward pass of 256 rows ~90x slower (133 ms against 1.5 ms at load 15 on 2 cores);
-        the results are the same to the bit (checked at 1 to 1,024 rows). The layers' weights are
-        detached and the inputs come from numpy: nothing records a graph, no ``no_grad`` is needed.
-        """
-        import torch
+        weights, biases = self._inference_layers()
+        return mlp_probabilities(self._standardized(features), weights, biases)
 
-        with single_threaded_torch():
-            return torch.softmax(_forward(self._linear_layers(), self._inputs(features)), dim=1).numpy()
-
-    def _linear_layers(self) -> list[tuple[torch.Tensor, torch.Tensor]]:
-        """The network's linear layers' (weight, bias), detached (sharing the parameters' storage)."""
-        from torch import nn
-
-        network = self.network
-        if self._linear is None or self._linear[0] is not network:
-            self._linear = (network, [(m.weight.detach(), m.bias.detach()) for m in network if isinstance(m, nn.Linear)])
-        return self._linear[1]
+    def _inference_layers(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
+        """The linear layers' weights, transposed to (in, out) and contiguous, and their biases, in order."""
+        if self._inference is None:
+            if self._network is None and self._weights is not None:
+                state = self._weights
+            else:
+                state = {name: value.detach().numpy() for name, value in self.network.state_dict().items()}
+            # an nn.Sequential's keys: "<index>.weight" and "<index>.bias" of its linear layers
+            indices = sorted({int(name.split(".")[0]) for name in state})
+            weights = tuple(np.ascontiguousarray(np.asarray(state[f"{i}.weight"], dtype=float).T) for i in indices)
+            biases = tuple(np.ascontiguousarray(state[f"{i}.bias"], dtype=float) for i in indices)
+            self._inference = (weights, biases)
+        return self._inference
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write weights, standardisation and metadata as safetensors (atomically)."""
