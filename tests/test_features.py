@@ -122,6 +122,7 @@ def test_numpy_sum_adds_as_numpy_does_to_the_bit():
         for start in (0, 3):
             assert np.float64(numpy_sum(values, start, start + count, scratch)).tobytes() == np.sum(values[start : start + count]).tobytes()
     assert np.float64(numpy_sum(np.array([-0.0, -0.0]), 0, 2, scratch)).tobytes() == np.sum(np.array([-0.0, -0.0])).tobytes()
+    assert np.float64(numpy_sum(np.array([-0.0]), 0, 1, scratch)).tobytes() == np.sum(np.array([-0.0])).tobytes()
 
 
 def test_spectrum_peaks_flag_equal_neighbours_and_equal_peaks():

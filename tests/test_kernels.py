@@ -1,7 +1,5 @@
 """Every compiled kernel of ``ea_gym._kernels`` against a plain numpy (or scipy) form of the same arithmetic."""
 
-import math
-
 import numpy as np
 import pytest
 from scipy import linalg
@@ -12,7 +10,6 @@ from ea_gym._kernels.detection import detect
 from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, solve
 from ea_gym._kernels.monitor import chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
-from ea_gym._kernels.numpy_forms import numpy_sum
 from ea_gym._kernels.prognosis import drift_ends, drift_prognosis
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym._kernels.smoothing import LANES, filter_into, filter_lanes, filter_rows
@@ -326,15 +323,6 @@ def test_drift_ends_equal_the_numpy_expressions_to_the_bit():
 
 
 # --- detection: numpy's sums, the statistic and the alarm ------------------------------------------
-
-
-@pytest.mark.parametrize("n", [1, 7, 8, 9, 50, 127, 128, 129, 300, 1000, 4099])
-def test_numpy_sum_is_ndarray_sum_to_the_bit(n):
-    rng = _rng(n)
-    for _ in range(20):
-        a = rng.standard_normal(n + 5) * 10.0 ** rng.uniform(-6, 6, n + 5)
-        assert numpy_sum(a, 3, n) == a[3 : 3 + n].sum()
-    assert math.copysign(1.0, numpy_sum(np.array([-0.0]), 0, 1)) == math.copysign(1.0, np.array([-0.0]).sum())
 
 
 def _detect_numpy(ea, ea_reference, window, balance, dissipated, steps, step_samples, span_samples, thresholds, persistence, time, state):

@@ -1,6 +1,6 @@
 """Detection's per-step statistic and alarm (``ea_gym.phm.detection.Detector.update``) in one compiled loop.
 
-Its sums and maxima are numpy's own (``numpy_forms``), so the statistic is the numpy form's to the bit;
+Its sums and maxima are numpy's own (``summation``, ``numpy_forms``), so the statistic is the numpy form's to the bit;
 the alarm's bookkeeping is integer and boolean.
 """
 
@@ -9,7 +9,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_sum
+from ea_gym._kernels.numpy_forms import numpy_maximum
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 
 @numba.njit(cache=True)
@@ -32,15 +33,17 @@ def detect(
     """
     n_elements = ea.shape[1]
     subs = ea.shape[2]
+    scratch = summation_scratch()
     for m in range(ea.shape[0]):
         seen = steps[m] * step_samples
         for e in range(n_elements + 1):
             if e < n_elements:
-                real = numpy_sum(ea[m, e], subs - window, window)
-                reference = numpy_sum(ea_reference[m, e], subs - window, window)
+                real = numpy_sum(ea[m, e], subs - window, subs, scratch)
+                reference = numpy_sum(ea_reference[m, e], subs - window, subs, scratch)
                 value = (real - reference) / numpy_maximum(reference, tiny)
             else:
-                value = numpy_sum(balance[m], 0, balance.shape[1]) / numpy_maximum(numpy_sum(dissipated[m], 0, dissipated.shape[1]), tiny)
+                dissipated_total = numpy_sum(dissipated[m], 0, dissipated.shape[1], scratch)
+                value = numpy_sum(balance[m], 0, balance.shape[1], scratch) / numpy_maximum(dissipated_total, tiny)
             statistic[m, e] = value if seen >= span_samples[e] else 0.0
         exceeded = False
         for e in range(n_elements + 1):

@@ -1,5 +1,5 @@
 """What the chain's history keeps of one step of the monitor (``ea_gym.phm.history.MonitorHistory.record``):
-the step's sums, in one compiled loop, each as numpy forms it (``numpy_forms``), so to the bit.
+the step's sums, in one compiled loop, each as numpy forms it (``summation``), so to the bit.
 """
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ea_gym._kernels.numpy_forms import numpy_sum
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 
 @numba.njit(cache=True)
@@ -27,6 +27,7 @@ def step_sums(
     """
     n, windows, components = gram.shape[0], gram.shape[1], gram.shape[2]
     squares = np.empty(balance.shape[1])
+    scratch = summation_scratch()
     for m in range(n):
         for i in range(components):
             for j in range(components):
@@ -38,11 +39,11 @@ def step_sums(
             for w in range(windows):
                 total += cross[m, w, i]
             cross_sum[m, i, 0] = total
-        balance_sum[m, 0] = numpy_sum(balance[m], 0, balance.shape[1])
+        balance_sum[m, 0] = numpy_sum(balance[m], 0, balance.shape[1], scratch)
         for w in range(balance.shape[1]):
             squares[w] = balance[m, w] * balance[m, w]
-        balance_square[m, 0] = numpy_sum(squares, 0, balance.shape[1])
+        balance_square[m, 0] = numpy_sum(squares, 0, balance.shape[1], scratch)
         total = 0.0
         for d in dissipators:
-            total += numpy_sum(ea_reference[m, d], 0, ea_reference.shape[2])
+            total += numpy_sum(ea_reference[m, d], 0, ea_reference.shape[2], scratch)
         dissipated[m, 0] = total
