@@ -10,6 +10,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ea_gym._kernels.numpy_forms import numpy_maximum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.numerics import TINY
 
@@ -17,7 +18,7 @@ from ea_gym.numerics import TINY
 @numba.njit(cache=True)
 def _relative(numerator: float, denominator: float) -> float:
     """numerator / np.maximum(denominator, TINY) (NaN stays NaN)."""
-    return numerator / (TINY if denominator < TINY else denominator)
+    return numerator / numpy_maximum(denominator, TINY)
 
 
 @numba.njit(cache=True)

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.numerics import TINY
 
@@ -79,12 +80,6 @@ def pseudo_inverse_factors(values: np.ndarray, vectors: np.ndarray, rcond: float
 
 
 @numba.njit(cache=True)
-def _maximum(a: float, b: float) -> float:
-    """np.maximum(a, b) of two floats (NaN propagates; of equal ones, a)."""
-    return a if (a >= b or a != a) else b
-
-
-@numba.njit(cache=True)
 def chi_squares(
     gram: np.ndarray, cross: np.ndarray, square: np.ndarray, windows: np.ndarray, explained: np.ndarray, columns: np.ndarray
 ) -> np.ndarray:
@@ -93,24 +88,18 @@ def chi_squares(
     D = len(columns)
     chi2 = np.empty((M, 1 + D))
     for m in range(M):
-        variance = _maximum(square[m] - explained[m], TINY) / max(windows[m] - C, 1)
-        chi2[m, 0] = _maximum(explained[m], 0.0) / variance
+        variance = numpy_maximum(square[m] - explained[m], TINY) / max(windows[m] - C, 1)
+        chi2[m, 0] = numpy_maximum(explained[m], 0.0) / variance
         smallest = chi2[m, 0]
         for d in range(D):
             c = columns[d]
-            alone = cross[m, c] ** 2 / _maximum(gram[m, c, c], TINY) if c >= 0 else explained[m]
-            chi2[m, 1 + d] = _maximum(explained[m] - alone, 0.0) / variance
-            smallest = smallest if (smallest <= chi2[m, 1 + d] or smallest != smallest) else chi2[m, 1 + d]
+            alone = cross[m, c] ** 2 / numpy_maximum(gram[m, c, c], TINY) if c >= 0 else explained[m]
+            chi2[m, 1 + d] = numpy_maximum(explained[m] - alone, 0.0) / variance
+            smallest = numpy_minimum(smallest, chi2[m, 1 + d])
         for d in range(D):
             if columns[d] < 0:
                 chi2[m, 1 + d] = smallest
     return chi2
-
-
-@numba.njit(cache=True)
-def _largest(a: float, b: float) -> float:
-    """The larger of a running maximum a and b as numpy's max reduces (NaN propagates)."""
-    return a if (a >= b or a != a) else b
 
 
 @numba.njit(cache=True)
@@ -134,7 +123,7 @@ def belief_inputs(
         for k in range(K):
             network[n, k] = (average[n, k] / total if total > 0 else 1.0 / K) + floor
             if np.isfinite(log_evidence[n, k]):
-                best = _largest(best, log_evidence[n, k])
+                best = numpy_maximum(best, log_evidence[n, k])
                 fitted |= k > 0
         for k in range(K):
             weighted = estimator_weight * (log_evidence[n, k] - best)
@@ -154,7 +143,7 @@ def shifted_log_belief(
         top = -np.inf
         for k in range(K):
             out[n, k] = network_weight * log_network[n, k] + evidence[n, k] + balance_weight * balance[n, k]
-            top = out[n, k] if k == 0 else _largest(top, out[n, k])
+            top = out[n, k] if k == 0 else numpy_maximum(top, out[n, k])
         for k in range(K):
             out[n, k] -= top
     return out
@@ -191,7 +180,7 @@ def verdict(
                     best = k
             isolated[n] = best
         faults = numpy_sum(diagnosis[n], 1, K, scratch)
-        share = diagnosis[n, isolated[n]] / (TINY if faults < TINY else faults)
+        share = diagnosis[n, isolated[n]] / numpy_maximum(faults, TINY)
         if isolated[n] > 0:
             confidence[n] = share
             confident[n] = share >= threshold
