@@ -166,6 +166,12 @@ def activity_shares(stacked: np.ndarray, names: Sequence[str]) -> np.ndarray:
     return np.where(total > 0, stacked / safe, 1.0 / len(stacked))
 
 
+def component_activity_index(ea: np.ndarray, columns: np.ndarray, names: Sequence[str]) -> np.ndarray:
+    """``activity_index`` of every row of ``ea`` (rows, E) in J: the components ``names`` are its ``columns``;
+    returns (rows, C)."""
+    return np.ascontiguousarray(activity_shares(np.ascontiguousarray(ea.T[columns]), names).T)
+
+
 @dataclass(frozen=True)
 class WindowedEnergy:
     """EA of every element and EAI of the components, per window.

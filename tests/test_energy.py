@@ -8,6 +8,7 @@ from ea_gym import models
 from ea_gym.energy import (
     EnergyActivityAccumulator,
     activity_index,
+    component_activity_index,
     constitutive_power,
     cumulative_energy_activity,
     energy_activity,
@@ -238,6 +239,16 @@ def test_activity_index_hand_computed():
     np.testing.assert_allclose(eai["b"], [0.75, 0.5, 0.0])
     with pytest.raises(ValueError):
         activity_index({})
+
+
+def test_component_activity_index_by_rows_hand_computed():
+    # rows are systems, columns elements; the components are columns 0 and 2 (column 1 is no component)
+    ea = np.array([[1.0, 5.0, 3.0], [0.0, 7.0, 0.0], [2.0, 0.0, 2.0]])
+    eai = component_activity_index(ea, np.array([0, 2]), ("R", "C"))
+    np.testing.assert_array_equal(eai, [[0.25, 0.75], [0.5, 0.5], [0.5, 0.5]])  # no activity: an even share
+    assert eai.flags.c_contiguous
+    with pytest.raises(ValueError, match="'C'"):
+        component_activity_index(np.array([[1.0, 0.0, -1.0]]), np.array([0, 2]), ("R", "C"))
 
 
 def test_activity_index_of_a_simulation_sums_to_one(smd):

@@ -18,7 +18,7 @@ from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
-from ea_gym.energy import activity_shares
+from ea_gym.energy import component_activity_index
 from ea_gym.env.config import EnvConfig
 from ea_gym.env.events import CorrectiveStep, Event, Failure, Replacement, action_table
 from ea_gym.env.infos import COST_ITEMS, StepInfo
@@ -271,7 +271,7 @@ class MaintenanceCore:
             }
         monitored = self.monitor.update(window.measured, window.expected, window.load)
         ea, ea_ref = monitored.ea.sum(-1), monitored.ea_reference.sum(-1)
-        eai = np.ascontiguousarray(activity_shares(np.ascontiguousarray(ea.T[self._rco_index]), self.rco).T)
+        eai = component_activity_index(ea, self._rco_index, self.rco)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
 
     def observe(self, outputs: dict[str, np.ndarray]) -> Observation:

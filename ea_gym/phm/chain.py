@@ -18,7 +18,7 @@ import numpy as np
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
-from ea_gym.energy import activity_shares, window_samples
+from ea_gym.energy import component_activity_index, window_samples
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import Detector
@@ -184,8 +184,7 @@ class PHMChain:
 
     def _activity_index(self, ea: np.ndarray, ea_reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """EAI of every component, (N, C), from every element's real and reference EA over the step (N, E), in one pass."""
-        components = np.ascontiguousarray(np.concatenate([ea, ea_reference]).T[self.monitor.component_index])
-        shares = np.ascontiguousarray(activity_shares(components, self.monitor.components).T)
+        shares = component_activity_index(np.concatenate([ea, ea_reference]), self.monitor.component_index, self.monitor.components)
         return shares[: self.n], shares[self.n :]
 
     @property
