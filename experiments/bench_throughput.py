@@ -165,7 +165,7 @@ def measure(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, 
 #: where a step's time goes: the first stage whose marker is in a function's file path takes its own time
 STAGES = (
     ("tracking filters", ("_kernels/tracking", "phm/tracking")),
-    ("isolation network", ("torch/", "diagnosis/classifier")),
+    ("isolation network", ("torch/", "diagnosis/classifier", "_kernels/network")),
     ("isolation features", ("diagnosis/features", "_kernels/features", "_kernels/summation", "scipy/signal", "scipy/fft")),
     ("balance evidence and fusion", ("phm/isolation", "_kernels/isolation")),
     ("monitor (EA, detection)", (
