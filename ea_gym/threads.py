@@ -1,14 +1,22 @@
-"""BLAS threading for the many small matrix products of the simulation.
+"""Threads: one BLAS thread for the many small matrix products, and the compiled kernels' rows split over
+the cores.
 
 Batches of tiny matrices (2x2 to 10x10) run slower on several BLAS threads than on one, and far slower
 when another process holds a core (threads wait on each other). The hot paths run under
 ``single_threaded_blas()``; torch keeps its own threads.
+
+The batched environment's kernels work system by system, so a batch's rows split into contiguous parts
+that run at once on ``kernel_threads()`` threads (``over_rows``): each system's arithmetic is the same
+whichever part holds it, so the results are the same bits on any number of threads. The kernels release
+the GIL (``nogil``); the waiting threads block on a queue, they do not spin.
 """
 
 from __future__ import annotations
 
+import os
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
+from concurrent.futures import Future, ThreadPoolExecutor
 from contextlib import contextmanager
 from functools import cache
 
@@ -65,3 +73,90 @@ def single_threaded_torch() -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(previous)
+
+
+#: the fewest rows a part of ``over_rows`` gets: below it, handing the part to a thread costs more than it saves
+MIN_ROWS_PER_PART = 16
+#: parts per thread: the threads take the parts in turn until none is left, so that a thread that
+#: starts late (woken) or whose systems cost more (in alarm) leaves the rest to the others
+PARTS_PER_THREAD = 4
+
+
+def available_cores() -> int:
+    """The cores this process may run on, no more than OMP_NUM_THREADS where set (as Ray sets it to a
+    worker's CPUs)."""
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+    limit = os.environ.get("OMP_NUM_THREADS", "")
+    return max(1, min(cores, int(limit))) if limit.isdigit() and int(limit) > 0 else cores
+
+
+class _KernelPool:
+    """The worker threads of ``over_rows`` (threads - 1 of them: the caller runs a part too), started on first use."""
+
+    def __init__(self) -> None:
+        self.threads = available_cores()
+        self.executor: ThreadPoolExecutor | None = None
+        self.lock = threading.Lock()
+        self.worker = threading.local()  # set in the workers: a kernel they run splits no further
+
+    def submit(self, call: Callable[[], None]) -> Future[None]:
+        with self.lock:
+            if self.executor is None:
+                self.executor = ThreadPoolExecutor(self.threads - 1, "ea-gym-kernel", initializer=self.mark_worker)
+            return self.executor.submit(call)
+
+    def mark_worker(self) -> None:
+        self.worker.active = True
+
+    def resize(self, threads: int) -> None:
+        with self.lock:
+            if self.executor is not None:
+                self.executor.shutdown(wait=True)
+            self.executor, self.threads = None, threads
+
+    def forget_workers(self) -> None:
+        """In a forked child: the parent's worker threads are not there; new ones start on first use."""
+        self.executor, self.lock = None, threading.Lock()
+
+
+_pool = _KernelPool()
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_pool.forget_workers)
+
+
+def kernel_threads() -> int:
+    """How many threads ``over_rows`` runs the kernels on (default: ``available_cores()``)."""
+    return _pool.threads
+
+
+def set_kernel_threads(threads: int) -> None:
+    """Run the kernels' rows on ``threads`` threads from now on (1: on the calling thread alone), as
+    ``torch.set_num_threads`` sets torch's."""
+    if not isinstance(threads, int) or isinstance(threads, bool) or threads < 1:
+        raise ValueError(f"threads must be a positive integer, got {threads!r}")
+    _pool.resize(threads)
+
+
+def over_rows(call: Callable[[int, int], None], rows: int) -> None:
+    """``call(start, stop)`` over rows [0, rows) in contiguous parts of at least ``MIN_ROWS_PER_PART``,
+    which the kernel threads (the caller's among them) take in turn until none is left. ``call`` must
+    write only its own rows and release the GIL for its work (a ``nogil`` kernel). Returns when every
+    part is done; a part's exception is raised here."""
+    threads = min(_pool.threads, rows // MIN_ROWS_PER_PART)
+    if threads <= 1 or getattr(_pool.worker, "active", False):
+        call(0, rows)
+        return
+    parts = min(rows // MIN_ROWS_PER_PART, threads * PARTS_PER_THREAD)
+    cuts = [rows * part // parts for part in range(parts + 1)]
+    queue = iter(list(zip(cuts[:-1], cuts[1:])))  # a list iterator: each next() is atomic under the GIL
+
+    def take_parts() -> None:
+        for start, stop in queue:
+            call(start, stop)
+
+    pending = [_pool.submit(take_parts) for _ in range(threads - 1)]
+    try:
+        take_parts()
+    finally:
+        for future in pending:
+            future.result()

@@ -1,10 +1,17 @@
-"""Thread settings: the BLAS limit holds through nested contexts and is restored after the outermost."""
+"""Thread settings: the BLAS limit holds through nested contexts and is restored after the outermost; the
+kernels' rows split over the kernel threads, each row once."""
 
 from __future__ import annotations
 
+import os
+import threading
+import time
+
+import numpy as np
+import pytest
 from threadpoolctl import threadpool_info
 
-from ea_gym.threads import single_threaded_blas
+from ea_gym.threads import MIN_ROWS_PER_PART, available_cores, kernel_threads, over_rows, set_kernel_threads, single_threaded_blas
 
 
 def blas_threads() -> list[int]:
@@ -19,3 +26,61 @@ def test_nested_single_threaded_blas_holds_one_thread_until_the_outermost_exits(
             assert set(blas_threads()) == {1}
         assert set(blas_threads()) == {1}  # the inner context leaves the outer's limit in place
     assert blas_threads() == before
+
+
+def test_over_rows_covers_every_row_once_in_parts_on_the_kernel_threads() -> None:
+    seen = np.zeros(100, dtype=int)
+    names: set[str] = set()
+    lock = threading.Lock()
+
+    def part(start: int, stop: int) -> None:
+        with lock:
+            seen[start:stop] += 1
+            names.add(threading.current_thread().name)
+        time.sleep(0.01)  # long enough that the worker takes parts too
+
+    previous = kernel_threads()
+    try:
+        set_kernel_threads(2)
+        over_rows(part, 100)
+        assert seen.tolist() == [1] * 100
+        assert threading.current_thread().name in names and any(name.startswith("ea-gym-kernel") for name in names)
+        set_kernel_threads(1)
+        names.clear()
+        over_rows(part, 100)
+        assert names == {threading.current_thread().name} and seen.tolist() == [2] * 100
+    finally:
+        set_kernel_threads(previous)
+
+
+def test_over_rows_runs_few_rows_on_the_caller_in_one_part() -> None:
+    calls: list[tuple[int, int]] = []
+    over_rows(lambda start, stop: calls.append((start, stop)), MIN_ROWS_PER_PART + 1)
+    assert calls == [(0, MIN_ROWS_PER_PART + 1)]
+
+
+def test_over_rows_raises_a_parts_exception() -> None:
+    def part(start: int, stop: int) -> None:
+        if start > 0:
+            raise ZeroDivisionError(f"rows {start}:{stop}")
+
+    previous = kernel_threads()
+    try:
+        set_kernel_threads(2)
+        with pytest.raises(ZeroDivisionError, match="rows"):
+            over_rows(part, 64)
+    finally:
+        set_kernel_threads(previous)
+
+
+@pytest.mark.parametrize("threads", [0, -1, 1.5, True])
+def test_set_kernel_threads_refuses_a_non_positive_integer(threads: object) -> None:
+    with pytest.raises(ValueError, match="threads must be a positive integer"):
+        set_kernel_threads(threads)  # type: ignore[arg-type]
+
+
+def test_available_cores_honours_omp_num_threads(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    assert available_cores() == 1
+    monkeypatch.setenv("OMP_NUM_THREADS", "not a number")
+    assert available_cores() == len(os.sched_getaffinity(0))

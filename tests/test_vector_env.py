@@ -17,6 +17,7 @@ from ea_gym.diagnosis.classifier import FaultClassifier, TrainingConfig
 from ea_gym.env import ENV_ID
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
+from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
 
 # faults from the first seconds, fast: failures (terminations) within ~10 steps, and truncations at the
 # 12-step horizon for the episodes whose fault comes late or whose part is replaced in time
@@ -313,3 +314,31 @@ def test_native_env_equals_single_envs_with_every_system_in_alarm():
         assert_same(native.step(carry_on), reference.step(carry_on), f"step {step}")
         classified += int(chain.isolation.counted(chain.history, chain.detector.state.alarm).sum())
     assert chain.detector.state.alarm.all() and classified >= n * 5
+
+
+def test_native_env_is_the_same_on_one_kernel_thread_and_on_two():
+    # enough systems in alarm that every stage's rows split over the threads (``over_rows``); random
+    # maintenance and failures restart some of them on the way
+    n = 3 * MIN_ROWS_PER_PART
+    wear = {name: WearConfig(arrival=(0.0, 1.0)) for name in FAST_WEAR}
+    envs = {threads: _vector(n, obs_mode="phm", continue_after_failure=True, wear=wear) for threads in (1, 2)}
+    rng = np.random.default_rng(5)
+    previous = kernel_threads()
+    try:
+        results = {}
+        for threads, env in envs.items():
+            set_kernel_threads(threads)
+            results[threads] = env.reset(seed=3)
+        assert_same(results[1], results[2], "reset")
+        chain = envs[2].unwrapped.core.chain
+        in_alarm = []
+        for step in range(25):
+            actions = _random_actions(rng, n)
+            for threads, env in envs.items():
+                set_kernel_threads(threads)
+                results[threads] = env.step(actions)
+            assert_same(results[1], results[2], f"step {step}")
+            in_alarm.append(chain.detector.state.alarm.mean())
+        assert max(in_alarm) >= 0.5
+    finally:
+        set_kernel_threads(previous)

@@ -122,7 +122,7 @@ def track(
     )
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def track_filters(
     coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
     state_noise: float, forget: float, h: float, drift_time: np.ndarray,

@@ -53,6 +53,7 @@ from ea_gym.bondgraph.simulation import discretize
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.models import SystemModel
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.threads import over_rows
 
 if TYPE_CHECKING:
     from ea_gym.diagnosis.monitor import Monitor
@@ -328,11 +329,18 @@ class TrackingEstimator:
             self.advance_clock(np.where(held, span, 0.0))
         self.clock = t.copy()
         hyp = self.hypotheses
-        track(
-            hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
-            np.where(held, 0.0, self.h), self._systems, measured, np.ascontiguousarray(signals.load, dtype=float),
-            np.ascontiguousarray(signals.load_rate, dtype=float), variance, self.z, self.P, self.log_likelihood,
-        )
+        drift_time = np.where(held, 0.0, self.h)
+        load, load_rate = np.ascontiguousarray(signals.load, dtype=float), np.ascontiguousarray(signals.load_rate, dtype=float)
+
+        def track_rows(start: int, stop: int) -> None:
+            rows = slice(start, stop)
+            track(
+                hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
+                drift_time[rows], self._systems[rows], measured[rows], load[rows], load_rate[rows], variance[rows], self.z, self.P,
+                self.log_likelihood,
+            )
+
+        over_rows(track_rows, n)
         return self.estimates(t)
 
     def advance_clock(self, gap: np.ndarray) -> None:
