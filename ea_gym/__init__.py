@@ -27,6 +27,7 @@ if TYPE_CHECKING:
     from ea_gym.models import MODELS, ParameterError, SystemModel, get_model
     from ea_gym.plant import Trajectory, run_model, simulate
     from ea_gym.scenario import Scenario, ScenarioError, load_scenario
+    from ea_gym.threads import kernel_threads, set_kernel_threads
 
 # imported on first use: ``ea-gym`` reads and refuses a bad file before the numerical kernels (numba, scipy) load
 _WHERE = {
@@ -36,6 +37,7 @@ _WHERE = {
     **dict.fromkeys(("MODELS", "ParameterError", "SystemModel", "get_model"), "ea_gym.models"),
     **dict.fromkeys(("Trajectory", "run_model", "simulate"), "ea_gym.plant"),
     **dict.fromkeys(("Scenario", "ScenarioError", "load_scenario"), "ea_gym.scenario"),
+    **dict.fromkeys(("kernel_threads", "set_kernel_threads"), "ea_gym.threads"),
 }
 
 
@@ -60,8 +62,10 @@ __all__ = [
     "cumulative_energy_activity",
     "energy_activity",
     "get_model",
+    "kernel_threads",
     "load_scenario",
     "run_model",
+    "set_kernel_threads",
     "simulate",
     "windowed_energy",
 ]

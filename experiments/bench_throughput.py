@@ -2,7 +2,9 @@
 
 What it measures, in one run, on ``ea_gym/SpringMassDamper-v0`` with the full PHM chain (obs_mode "phm",
 ``continue_after_failure=True``), for N in ``--sizes`` (default 1, 16, 256, 1024): env-steps per second
-of the native batched environment (``vectorization_mode="vector_entry_point"``) and of Gymnasium's
+of the native batched environment (``vectorization_mode="vector_entry_point"``; its compiled kernels' rows
+on ``ea_gym.kernel_threads()`` threads, the cores available, and where that is more than one and N is
+large enough to split, also on one thread beside it) and of Gymnasium's
 ``SyncVectorEnv`` of single environments (up to ``--sync-max``, default 256: beyond it a measurement
 takes minutes), and at N = 1 of the single environment itself (``gym.make``). The regimes:
 
@@ -17,7 +19,8 @@ takes minutes), and at N = 1 of the single environment itself (``gym.make``). Th
 Each figure comes with the share of systems in alarm (mean over the timed steps), the CPU seconds
 the process used per wall second (below 1 on a machine others load), the env-steps per CPU second
 (less sensitive to that load than the wall rate) and the 1-minute load average when it was taken.
-``--profile`` adds, per regime, a cProfile of the batched env at N = 256 summarised by stage.
+``--profile`` adds, per regime, a cProfile of the batched env at N = 256 on one kernel thread (cProfile
+sees the calling thread only) summarised by stage.
 Speed-ups between two commits are best stated with ``experiments/bench_against.py`` (alternating
 fresh processes).
 
@@ -56,7 +59,7 @@ from ea_gym.degradation import WearConfig  # noqa: E402
 from ea_gym.env import ENV_ID  # noqa: E402
 from ea_gym.files import write_json  # noqa: E402
 from ea_gym.models import get_model  # noqa: E402
-from ea_gym.threads import single_threaded_torch  # noqa: E402
+from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads, single_threaded_torch  # noqa: E402
 
 REGIMES = ("healthy", "alarm", "ppo")
 AGENT = ROOT / "agents" / "data" / "ppo_phm"
@@ -136,8 +139,23 @@ def alarm_share(env: Any) -> float:
     return float(env.unwrapped.core.chain.detector.state.alarm.mean())
 
 
-def measure(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, actor: Actor, profile: cProfile.Profile | None = None) -> dict:
-    """env-steps/s of ``kind`` at N = ``n`` in ``regime`` over ``steps`` batch steps after ``warmup``."""
+def measure(
+    kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, actor: Actor, profile: cProfile.Profile | None = None,
+    threads: int | None = None,
+) -> dict:
+    """env-steps/s of ``kind`` at N = ``n`` in ``regime`` over ``steps`` batch steps after ``warmup``, the
+    kernels on ``threads`` threads (None: as set)."""
+    previous = kernel_threads()
+    if threads is not None:
+        set_kernel_threads(threads)
+    try:
+        return measured(kind, n, regime, steps, warmup, seed, actor, profile) | {"kernel_threads": kernel_threads()}
+    finally:
+        set_kernel_threads(previous)
+
+
+def measured(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, actor: Actor, profile: cProfile.Profile | None) -> dict:
+    """``measure`` on the kernel threads as set."""
     env = make_env(kind, n, regime_kwargs(regime))
     observation, _ = env.reset(seed=seed)
     for _ in range(warmup):
@@ -198,30 +216,36 @@ def run(args: argparse.Namespace) -> dict:
         "regimes": {}, "profiles": {},
     }
     print(f"machine: {os.cpu_count()} cores, python {platform.python_version()}, load {os.getloadavg()[0]:.1f}")
-    header = f"{'regime':>8} {'N':>5} {'env':>8} {'steps/s':>9} {'per CPU-s':>10} {'CPU share':>9} {'alarm':>6} {'load':>5} {'vs sync':>8}"
+    header = (f"{'regime':>8} {'N':>5} {'env':>8} {'threads':>7} {'steps/s':>9} {'per CPU-s':>10} {'CPU share':>9} {'alarm':>6} {'load':>5} "
+              f"{'vs sync':>8}")
     print(header)
+    threads = kernel_threads()
     for regime in args.regimes:
         actor = regime_actor(regime)
         warmup = args.alarm_warmup if regime == "alarm" else args.warmup
         rows: dict[str, Any] = {}
         for n in args.sizes:
-            kinds = ["batched"] + (["sync"] if n <= args.sync_max else []) + (["single"] if n == 1 else [])
+            # (key, env, kernel threads): the batched env also on one thread where it would split its rows
+            kinds = (
+                [("batched", "batched", threads)] + ([("batched_one_thread", "batched", 1)] if threads > 1 and n >= 2 * MIN_ROWS_PER_PART else [])
+                + ([("sync", "sync", 1)] if n <= args.sync_max else []) + ([("single", "single", 1)] if n == 1 else [])
+            )
             row = {}
-            for kind in kinds:
+            for key, kind, kind_threads in kinds:
                 steps = args.steps if kind != "sync" or n <= 16 else max(2, args.steps // 4)
-                row[kind] = measure(kind, n, regime, steps, warmup, args.seed, actor)
-                r = row[kind]
+                row[key] = measure(kind, n, regime, steps, warmup, args.seed, actor, threads=kind_threads)
+                r = row[key]
                 ratio = f"{row['batched']['env_steps_per_s'] / r['env_steps_per_s']:.1f}x" if kind == "sync" else ""
-                print(f"{regime:>8} {n:>5} {kind:>8} {r['env_steps_per_s']:>9.0f} {r['env_steps_per_cpu_s']:>10.0f} "
+                print(f"{regime:>8} {n:>5} {kind:>8} {kind_threads:>7} {r['env_steps_per_s']:>9.0f} {r['env_steps_per_cpu_s']:>10.0f} "
                       f"{r['cpu_share']:>9.2f} {r['alarm_share']:>6.0%} {r['load_1min']:>5.1f} {ratio:>8}", flush=True)
             rows[str(n)] = row
         results["regimes"][regime] = rows
         if args.profile:
             profile = cProfile.Profile()
-            measure("batched", 256, regime, args.steps, warmup, args.seed, actor, profile)
+            measure("batched", 256, regime, args.steps, warmup, args.seed, actor, profile, threads=1)
             results["profiles"][regime] = stage_times(profile, args.steps)
     if args.profile:
-        print("\nwhere a batched step's time goes at N = 256 (ms per step, own time under cProfile):")
+        print("\nwhere a batched step's time goes at N = 256 on one kernel thread (ms per step, own time under cProfile):")
         print(f"{'stage':>30} " + " ".join(f"{regime:>8}" for regime in results["profiles"]))
         for stage in next(iter(results["profiles"].values()), {}):
             print(f"{stage:>30} " + " ".join(f"{p[stage]:>8.1f}" for p in results["profiles"].values()))
