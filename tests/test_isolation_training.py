@@ -221,4 +221,6 @@ def test_mlp_probabilities_by_hand() -> None:
     h = np.tanh(x[:, 0] - x[:, 1] + 0.5)
     logits = np.stack([2 * h, -h + 1], axis=1)
     expected = np.exp(logits) / np.exp(logits).sum(axis=1, keepdims=True)
-    np.testing.assert_allclose(mlp_probabilities(x, weights, biases), expected, rtol=1e-15)
+    probabilities = np.empty((2, 2))
+    mlp_probabilities(x, weights, biases, probabilities)
+    np.testing.assert_allclose(probabilities, expected, rtol=1e-15)

@@ -21,34 +21,34 @@ def _relative(numerator: float, denominator: float) -> float:
     return numerator / numpy_maximum(denominator, TINY)
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def frame_sums(
     ea: np.ndarray, ea_reference: np.ndarray, rows: np.ndarray, inertia: int, components: np.ndarray, window: np.ndarray,
-    segment: np.ndarray, features: np.ndarray,
-) -> np.ndarray:
+    segment: np.ndarray, features: np.ndarray, scale: np.ndarray,
+) -> None:
     """The EA sums of the frames of ``rows`` of ``ea`` and ``ea_reference`` (N, E, F) in J.
 
     Writes, for the k-th row: segment[k] = the I element's residual (EA_real - EA_ref) per sub-window,
     its mean removed, times ``window`` (F,) (the spectrum's segment, as scipy's ``stft`` makes it);
     features[k, :3 E] = every element's relative residual over the frame, its first half and its
-    second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual. Returns the
-    I element's mean reference EA per sub-window, (M,).
+    second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual; scale[k] =
+    the I element's mean reference EA per sub-window. Each row's numbers are its own: the rows may be
+    split over threads (the GIL released).
     """
     E, F = ea.shape[1], ea.shape[2]
     C = len(components)
     half = F // 2
-    # each element's sub-windows, copied contiguous: the sums' loops then vectorise
-    real, reference, residual = np.empty(F), np.empty(F), np.empty(F)
+    # the sums read the frame in place (its rows are windows on the history's backing arrays: a copy
+    # would cost more than the strided reads); the residual is formed once
+    residual = np.empty(F)
     real_total, reference_total = np.empty(E), np.empty(E)
     ea_share, reference_share = np.empty(C), np.empty(C)
-    scale = np.empty(len(rows))
     scratch = summation_scratch()
     for k in range(len(rows)):
         n = rows[k]
         for e in range(E):
+            real, reference = ea[n, e], ea_reference[n, e]
             for t in range(F):
-                real[t] = ea[n, e, t]
-                reference[t] = ea_reference[n, e, t]
                 residual[t] = real[t] - reference[t]
             real_total[e] = numpy_sum(real, 0, F, scratch)
             reference_total[e] = numpy_sum(reference, 0, F, scratch)
@@ -66,7 +66,6 @@ def frame_sums(
         ea_sum, reference_sum = numpy_sum(ea_share, 0, C, scratch), numpy_sum(reference_share, 0, C, scratch)
         for c in range(C):
             features[k, 3 * E + c] = _relative(ea_share[c], ea_sum) - _relative(reference_share[c], reference_sum)
-    return scale
 
 
 @numba.njit(cache=True)

@@ -13,17 +13,17 @@ import numba
 import numpy as np
 
 
-@numba.njit(cache=True)
-def mlp_probabilities(inputs: np.ndarray, weights: tuple[np.ndarray, ...], biases: tuple[np.ndarray, ...]) -> np.ndarray:
+@numba.njit(cache=True, nogil=True)
+def mlp_probabilities(inputs: np.ndarray, weights: tuple[np.ndarray, ...], biases: tuple[np.ndarray, ...], probabilities: np.ndarray) -> None:
     """The softmax of a multilayer perceptron (tanh after every layer but the last) on each row of
-    ``inputs`` (n, F): ``weights[l]`` is layer l's (in, out) matrix (torch's weight transposed),
-    ``biases[l]`` its (out,) vector. Returns (n, out of the last layer)."""
+    ``inputs`` (n, F), written to ``probabilities`` (n, out of the last layer): ``weights[l]`` is layer
+    l's (in, out) matrix (torch's weight transposed), ``biases[l]`` its (out,) vector. The GIL is
+    released: parts of the rows may run on several threads at once."""
     layers = len(weights)
     width = inputs.shape[1]
     for layer in range(layers):
         width = max(width, weights[layer].shape[1])
     activation, unit = np.empty(width), np.empty(width)
-    probabilities = np.empty((inputs.shape[0], biases[layers - 1].shape[0]))
     for row in range(inputs.shape[0]):
         size = inputs.shape[1]
         activation[:size] = inputs[row]
@@ -48,4 +48,3 @@ def mlp_probabilities(inputs: np.ndarray, weights: tuple[np.ndarray, ...], biase
             total += probabilities[row, j]
         for j in range(size):
             probabilities[row, j] /= total
-    return probabilities

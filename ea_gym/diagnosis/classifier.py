@@ -21,7 +21,7 @@ import numpy as np
 
 from ea_gym.diagnosis.features import VARIANTS
 from ea_gym.files import write_atomic
-from ea_gym.threads import single_threaded_torch
+from ea_gym.threads import over_rows, single_threaded_torch
 
 if TYPE_CHECKING:
     import torch
@@ -177,7 +177,14 @@ class FaultClassifier:
         from ea_gym._kernels.network import mlp_probabilities
 
         weights, biases = self._inference_layers()
-        return mlp_probabilities(self._standardized(features), weights, biases)
+        inputs = self._standardized(features)
+        probabilities = np.empty((len(inputs), len(biases[-1])))
+
+        def rows_of_probabilities(start: int, stop: int) -> None:
+            mlp_probabilities(inputs[start:stop], weights, biases, probabilities[start:stop])
+
+        over_rows(rows_of_probabilities, len(inputs))
+        return probabilities
 
     def _inference_layers(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:
         """The linear layers' weights, transposed to (in, out) and contiguous, and their biases, in order."""

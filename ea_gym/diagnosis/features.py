@@ -21,6 +21,7 @@ import numpy as np
 
 from ea_gym._kernels.features import frame_sums, ridge_system, spectrum_peaks
 from ea_gym.numerics import TINY
+from ea_gym.threads import over_rows
 
 N_PEAKS = 3
 #: the smallest peak kept, relative to the largest: the smaller ones are noise
@@ -175,9 +176,19 @@ def frame_features(frame: Frame, variant: str, max_frequency: float = 2.0, rows:
     E, F = frame.ea.shape[1:]
     segment = np.empty((len(rows), F))
     sums = np.empty((len(rows), 3 * E + len(frame.component_index)))
-    # every element's relative residual over the frame and its halves, the components' EAI residual, and the
-    # I element's residual as the spectrum's one segment (spectral_peaks' arithmetic, read in place)
-    reference_mean = frame_sums(frame.ea, frame.ea_reference, rows, frame.inertia_index, frame.component_index, hann_window(F), segment, sums)
+    reference_mean = np.empty(len(rows))
+    window = hann_window(F)
+
+    def sum_rows(start: int, stop: int) -> None:
+        # every element's relative residual over the frame and its halves, the components' EAI residual, and
+        # the I element's residual as the spectrum's one segment (spectral_peaks' arithmetic, read in place)
+        part = slice(start, stop)
+        frame_sums(
+            frame.ea, frame.ea_reference, rows[part], frame.inertia_index, frame.component_index, window, segment[part], sums[part],
+            reference_mean[part],
+        )
+
+    over_rows(sum_rows, len(rows))
     magnitude = _magnitude(segment) / np.maximum(reference_mean, TINY)[:, None]
     peaks = _peak_table(magnitude, _frequencies(F, 1.0 / frame.sub_window), max_frequency, MIN_RELATIVE)
     if variant == "paper":
