@@ -126,7 +126,9 @@ def test_expm_batch_equals_scipy(norm):
     Z = _rng(8).standard_normal((5, 6, 6))
     Z *= norm / np.abs(Z).sum(axis=1).max(axis=1)[:, None, None]
     exact = linalg.expm(Z)
-    np.testing.assert_allclose(expm_batch(Z), exact, rtol=0, atol=1e-13 * np.abs(exact).max())
+    out = np.empty_like(Z)
+    expm_batch(Z, out)
+    np.testing.assert_allclose(out, exact, rtol=0, atol=1e-13 * np.abs(exact).max())
 
 
 # --- propagation ----------------------------------------------------------------------------------

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from ea_gym._kernels.numpy_forms import numpy_maximum
+
 #: Coefficients b_0..b_13 of the [13/13] Pade approximant of exp (Higham 2005, Table 2.2).
 PADE13 = np.array([
     64764752532480000.0, 32382376266240000.0, 7771770303897600.0, 1187353796428800.0, 129060195264000.0,
@@ -18,14 +20,15 @@ THETA13 = 5.371920351148152
 
 @numba.njit(cache=True)
 def matmul(a: np.ndarray, b: np.ndarray, c: np.ndarray) -> None:
-    """c = a @ b; explicit loops, since a BLAS call costs more than the product for matrices this small."""
+    """c = a @ b; explicit loops, since a BLAS call costs more than the product for matrices this small.
+    Each entry sums its products in k's order from 0.0 in a register (c may not be a or b)."""
     n = a.shape[0]
-    c[:] = 0.0
     for i in range(n):
-        for k in range(n):
-            aik = a[i, k]
-            for j in range(n):
-                c[i, j] += aik * b[k, j]
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += a[i, k] * b[k, j]
+            c[i, j] = acc
 
 
 @numba.njit(cache=True)
@@ -58,25 +61,36 @@ def solve(a: np.ndarray, b: np.ndarray) -> None:
 @numba.njit(cache=True)
 def pade_polynomial(A2: np.ndarray, A4: np.ndarray, A6: np.ndarray, c: np.ndarray, T: np.ndarray, out: np.ndarray) -> None:
     """out = A6 (c6 A6 + c5 A4 + c4 A2) + c3 A6 + c2 A4 + c1 A2 + c0 I: the even or odd half of the
-    [13/13] Pade approximant's coefficients (``PADE13[0::2]`` or ``[1::2]``); T is a workspace."""
-    T[:] = c[6] * A6 + c[5] * A4 + c[4] * A2
+    [13/13] Pade approximant's coefficients (``PADE13[0::2]`` or ``[1::2]``); T is a workspace.
+    Element by element in the order of the array expressions, without their temporary arrays."""
+    n = A2.shape[0]
+    for i in range(n):
+        for j in range(n):
+            T[i, j] = c[6] * A6[i, j] + c[5] * A4[i, j] + c[4] * A2[i, j]
     matmul(A6, T, out)
-    out += c[3] * A6 + c[2] * A4 + c[1] * A2
-    for i in range(out.shape[0]):
+    for i in range(n):
+        for j in range(n):
+            out[i, j] += c[3] * A6[i, j] + c[2] * A4[i, j] + c[1] * A2[i, j]
         out[i, i] += c[0]
 
 
-@numba.njit(cache=True)
-def expm_batch(Z: np.ndarray) -> np.ndarray:
-    """e^Z for each of the (M, n, n) matrices: scaling and squaring with the [13/13] Pade approximant (Higham 2005)."""
+@numba.njit(cache=True, nogil=True)
+def expm_batch(Z: np.ndarray, out: np.ndarray) -> None:
+    """out[k] = e^Z[k] for each of the (M, n, n) matrices: scaling and squaring with the [13/13] Pade
+    approximant (Higham 2005). Each matrix's arithmetic is its own, so a batch's rows may be split over
+    threads (``ea_gym.threads.over_rows``)."""
     odd, even = PADE13[1::2], PADE13[0::2]
     n = Z.shape[1]
-    out = np.empty_like(Z)
     # one workspace for all matrices: allocations would cost more than the arithmetic
     A, A2, A4, A6, T, W, U, V = np.empty((8, n, n))
     for k in range(Z.shape[0]):
         A[:] = Z[k]
-        norm = np.abs(A).sum(axis=0).max()
+        norm = 0.0  # the largest column sum of |A| (numpy's max, NaN propagated)
+        for j in range(n):
+            column = 0.0
+            for i in range(n):
+                column += abs(A[i, j])
+            norm = column if j == 0 else numpy_maximum(norm, column)
         s = 0
         if norm > THETA13:
             s = int(np.ceil(np.log2(norm / THETA13)))
@@ -90,11 +104,12 @@ def expm_batch(Z: np.ndarray) -> np.ndarray:
         # V = A6 (b12 A6 + b10 A4 + b8 A2) + b6 A6 + b4 A4 + b2 A2 + b0 I
         pade_polynomial(A2, A4, A6, even, T, V)
         # r = (V - U)^-1 (V + U), then squared s times
-        T[:] = V - U
-        W[:] = V + U
+        for i in range(n):
+            for j in range(n):
+                T[i, j] = V[i, j] - U[i, j]
+                W[i, j] = V[i, j] + U[i, j]
         solve(T, W)
         for _ in range(s):
             matmul(W, W, T)
             W[:] = T
         out[k] = W
-    return out

@@ -34,7 +34,7 @@ SYSTEMS_BLOCK = 128  # systems propagated side by side; their lanes are the SIMD
 SAMPLES_CHUNK = 16  # samples of a block's lane-major copies
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def simulate_hermite(
     Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray,
     gain: np.ndarray, signals: np.ndarray, last: np.ndarray,
@@ -46,7 +46,8 @@ def simulate_hermite(
 
     One system's recursion is a chain of dependent sums; ``SYSTEMS_BLOCK`` systems run side by side
     with the system innermost, so the chains of different systems fill the SIMD lanes. Every system
-    takes the same operations in the same order as alone, so its result does not depend on the batch.
+    takes the same operations in the same order as alone, so its result does not depend on the batch:
+    a batch's rows may be split over threads (``ea_gym.threads.over_rows``).
     """
     n_sys, n_samples, nu = u.shape
     nx = Phi.shape[1]

@@ -20,7 +20,7 @@ from numpy.polynomial import chebyshev
 from ea_gym._kernels.expm import expm_batch
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym.bondgraph.equations import StateSpaceModel
-from ea_gym.threads import single_threaded_blas
+from ea_gym.threads import over_rows, single_threaded_blas
 
 #: Batches of up to so many parameter rows are sorted in Python (a single environment's plant and reference).
 FEW_ROWS = 8
@@ -43,7 +43,9 @@ def expm(Z: np.ndarray) -> np.ndarray:
     scipy loops over a batch in Python, matrix by matrix, which this compiled loop avoids.
     """
     flat = np.ascontiguousarray(Z, dtype=float).reshape((-1,) + Z.shape[-2:])
-    return expm_batch(flat).reshape(Z.shape)
+    out = np.empty_like(flat)
+    over_rows(lambda start, stop: expm_batch(flat[start:stop], out[start:stop]), len(flat))
+    return out.reshape(Z.shape)
 
 
 def discretize(A: np.ndarray, B: np.ndarray, h: float) -> Discretization:
@@ -324,8 +326,13 @@ def simulate_measured(
             step = discretize(mats.A, mats.B, sample_period)
             if last_step is not None:
                 last_step.keep(model, sample_period, distinct, step)
-        simulate_hermite(
-            np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma), index, np.ascontiguousarray(u),
-            np.ascontiguousarray(du), float(sample_period), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float), signals, last,
-        )
+        Phi, Gamma = np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma)
+        u, du, x0, gain = np.ascontiguousarray(u), np.ascontiguousarray(du), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float)
+        h = float(sample_period)
+
+        def simulate_rows(start: int, stop: int) -> None:
+            rows = slice(start, stop)
+            simulate_hermite(Phi, Gamma, index[rows], u[rows], du[rows], h, x0[rows], gain[rows], signals[rows], last[rows])
+
+        over_rows(simulate_rows, n)
     return signals, last
