@@ -15,9 +15,9 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 # the compiled form for many systems on uniform grids, as the environments draw their loads
-from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
+from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine, rotated_multisine_into
 
-__all__ = ["ConstantLoad", "Load", "RandomLoad", "Sine", "SinesLoad", "multisine_rotations", "rotated_multisine"]
+__all__ = ["ConstantLoad", "Load", "RandomLoad", "Sine", "SinesLoad", "multisine_rotations", "rotated_multisine", "rotated_multisine_into"]
 
 
 @runtime_checkable

@@ -14,7 +14,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ea_gym._kernels.normal import bit_generator_addresses, standard_normal_rows
+from ea_gym._kernels.normal import bit_generator_addresses, noisy_rows
+from ea_gym.threads import over_rows
 
 if TYPE_CHECKING:
     from ea_gym.diagnosis.monitor import Monitor
@@ -45,7 +46,7 @@ class SystemNoise:
     """``add_sensor_noise`` on N systems' signals at once, system i drawing from its own generator.
 
     The same numbers as calling ``add_sensor_noise(clean[i], fraction, rngs[i])`` system by system, in
-    array operations and one compiled loop for the draws.
+    one compiled loop over the systems, split over the kernel threads.
 
     Args:
         fraction: noise std as a fraction of each signal's RMS over the window.
@@ -55,17 +56,25 @@ class SystemNoise:
         self.fraction = fraction
         # the generators whose addresses were last taken, holding them alive, and those addresses
         self._generators: tuple[tuple[np.random.Generator, ...], np.ndarray] = ((), np.empty((0, 4), dtype=np.uintp))
+        self._distinct = True  # whether the generators' bit generators are distinct: their rows may run at once
 
     def __call__(self, clean: np.ndarray, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """Noisy copies of ``clean`` (N, nx, T); ``clean`` itself when the fraction is 0."""
         if self.fraction == 0:
             return clean
-        rms = np.sqrt((clean**2).sum(axis=-1, keepdims=True) / clean.shape[-1])  # np.mean's arithmetic, without its wrapper
-        noise = np.empty_like(clean)
-        standard_normal_rows(self._addresses(rngs), noise)
-        noise *= self.fraction * rms
-        noise += clean
-        return noise
+        clean = np.ascontiguousarray(clean, dtype=float)
+        noisy = np.empty_like(clean)
+        generators, fraction = self._addresses(rngs), float(self.fraction)
+
+        def noisy_part(start: int, stop: int) -> None:
+            rows = slice(start, stop)
+            noisy_rows(generators[rows], clean[rows], fraction, noisy[rows])
+
+        if self._distinct:
+            over_rows(noisy_part, len(clean))
+        else:  # a generator drawn for two systems: the systems' draws in order, on one thread
+            noisy_part(0, len(clean))
+        return noisy
 
     def _addresses(self, rngs: Sequence[np.random.Generator]) -> np.ndarray:
         """``bit_generator_addresses`` of every generator (N, 4), taken again only when the generators change."""
@@ -73,4 +82,5 @@ class SystemNoise:
         if len(known) != len(rngs) or not all(map(operator.is_, known, rngs)):
             addresses = np.array([bit_generator_addresses(rng) for rng in rngs], dtype=np.uintp).reshape(-1, 4)
             self._generators = (tuple(rngs), addresses)
+            self._distinct = len(np.unique(addresses[:, 0])) == len(addresses)  # no bit generator state shared
         return addresses

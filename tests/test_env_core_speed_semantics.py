@@ -20,7 +20,8 @@ from ea_gym.degradation import WearConfig
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.env import ENV_ID
 from ea_gym.models import get_model
-from ea_gym.sensors import add_sensor_noise
+from ea_gym.sensors import SystemNoise, add_sensor_noise
+from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
 
 MODELS = ("spring_mass_damper", "rlc_circuit", "dc_motor")
 
@@ -188,6 +189,25 @@ def test_batched_sensor_noise_draws_what_each_system_would():
     expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(4)])
     np.testing.assert_array_equal(core.operation.sensor_noise(clean, rngs), expected)
     assert all(a.random() == b.random() for a, b in zip(rngs, again))  # each generator left in the same state
+
+
+def test_sensor_noise_is_the_same_on_two_kernel_threads_and_from_a_shared_generator():
+    """Rows split over the threads draw what each system would; systems sharing one generator draw from it in turn."""
+    n = 3 * MIN_ROWS_PER_PART
+    clean = np.random.default_rng(8).standard_normal((n, 2, 101))
+    noise = SystemNoise(0.05)
+    previous = kernel_threads()
+    try:
+        set_kernel_threads(2)
+        rngs = [np.random.default_rng(30 + i) for i in range(n)]
+        again = [np.random.default_rng(30 + i) for i in range(n)]
+        expected = np.stack([add_sensor_noise(clean[i], 0.05, again[i]) for i in range(n)])
+        np.testing.assert_array_equal(noise(clean, rngs), expected)
+        shared, shared_again = np.random.default_rng(40), np.random.default_rng(40)
+        expected = np.stack([add_sensor_noise(clean[i], 0.05, shared_again) for i in range(n)])
+        np.testing.assert_array_equal(noise(clean, [shared] * n), expected)
+    finally:
+        set_kernel_threads(previous)
 
 
 def test_compiled_noise_draws_follow_any_bit_generator_and_new_generators():

@@ -49,10 +49,18 @@ def rotated_multisine(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray) -
     Returns:
         the sums and their derivatives, both (N, T).
     """
+    total = np.empty(t.shape)
+    slope = np.empty(t.shape)
+    rotated_multisine_into(t, phases, rotation, total, slope)
+    return total, slope
+
+
+@numba.njit(cache=True, nogil=True)
+def rotated_multisine_into(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray, total: np.ndarray, slope: np.ndarray) -> None:
+    """``rotated_multisine`` written into ``total`` and ``slope`` (N, T). Each system's arithmetic is its own
+    (the same in any block, in any lane), so a batch's rows may be split over threads (``ea_gym.threads.over_rows``)."""
     n_sys, n_samples = t.shape
     components = phases.shape[1]
-    total = np.empty((n_sys, n_samples))
-    slope = np.empty((n_sys, n_samples))
     B = min(SYSTEMS_BLOCK, n_sys)
     # component-major copies, system innermost (the SIMD axis); each sample's sums over the
     # components are made in registers, in the components' order
@@ -79,4 +87,3 @@ def rotated_multisine(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray) -
             for b in range(lanes):
                 total[n0 + b, k] = wave[b]
                 slope[n0 + b, k] = rate[b]
-    return total, slope

@@ -1,4 +1,5 @@
-"""Per-system standard normal draws: row i of an array filled from generator i, in one compiled loop.
+"""Per-system sensor noise: system i's standard normal draws from generator i, scaled by its signals'
+RMS, in one compiled loop (``ea_gym.sensors.SystemNoise``).
 
 numba's ziggurat is numpy's, so the numbers are those ``Generator.standard_normal(out=row)`` gives; the
 generators are passed as the addresses of their state and functions, not unboxed at every call.
@@ -7,6 +8,7 @@ generators are passed as the addresses of their state and functions, not unboxed
 from __future__ import annotations
 
 import ctypes
+import math
 from collections.abc import Callable
 from typing import Any, cast
 
@@ -15,6 +17,8 @@ import numpy as np
 from numba.core import cgutils, types
 from numba.extending import intrinsic
 from numba.np.random.distributions import random_standard_normal
+
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 BIT_GENERATOR_TYPE = types.NumPyRandomBitGeneratorType("bit_generator")
 
@@ -43,12 +47,25 @@ def bit_generator_addresses(rng: np.random.Generator) -> tuple[int, int, int, in
     return (interface.state_address, *(ctypes.cast(f, ctypes.c_void_p).value for f in functions))
 
 
-@numba.njit(cache=True)
-def standard_normal_rows(generators: np.ndarray, out: np.ndarray) -> None:
-    """Row i of ``out`` (N, ...) filled in C order from generator i (``bit_generator_addresses``, (N, 4)):
-    numba's ziggurat is numpy's, so these are the numbers ``Generator.standard_normal(out=row)`` gives."""
-    for i in range(out.shape[0]):
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def noisy_rows(generators: np.ndarray, clean: np.ndarray, fraction: float, noisy: np.ndarray) -> None:
+    """noisy = clean + fraction x RMS x z for the systems' signals (N, nx, T), z drawn for system i's
+    signals in C order from generator i (``bit_generator_addresses``, (N, 4)): ``add_sensor_noise``'s
+    numbers, its RMS summed as numpy sums (pairwise) and every product and sum in its order.
+
+    Each system draws from its own generator and its arithmetic is its own, so a batch's rows may be
+    split over threads (``ea_gym.threads.over_rows``) as long as no two rows share a generator."""
+    n_signals, n_samples = clean.shape[1], clean.shape[2]
+    squares = np.empty(n_samples)
+    scratch = summation_scratch()
+    for i in range(clean.shape[0]):
         generator = bit_generator(generators[i, 0], generators[i, 1], generators[i, 2], generators[i, 3])
-        row = out[i].reshape(-1)
-        for k in range(row.size):
-            row[k] = random_standard_normal(generator)
+        for j in range(n_signals):
+            for k in range(n_samples):
+                noisy[i, j, k] = random_standard_normal(generator)
+        for j in range(n_signals):
+            for k in range(n_samples):
+                squares[k] = clean[i, j, k] * clean[i, j, k]
+            scale = fraction * math.sqrt(numpy_sum(squares, 0, n_samples, scratch) / n_samples)
+            for k in range(n_samples):
+                noisy[i, j, k] = noisy[i, j, k] * scale + clean[i, j, k]

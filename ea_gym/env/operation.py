@@ -17,9 +17,10 @@ from ea_gym.bondgraph.simulation import LastDiscretization, simulate_measured
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
-from ea_gym.loads import multisine_rotations, rotated_multisine
+from ea_gym.loads import multisine_rotations, rotated_multisine_into
 from ea_gym.models import SystemModel
 from ea_gym.sensors import SystemNoise
+from ea_gym.threads import over_rows
 
 LOAD_COMPONENTS = 16  # sines in each random load
 
@@ -59,7 +60,14 @@ class Loads:
 
     def signal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each system's load and its time derivative at its times ``t`` (N, T)."""
-        waves, slopes = rotated_multisine(t, self.phase, self.rotation)
+        waves, slopes = np.empty(t.shape), np.empty(t.shape)
+        phase, rotation = self.phase, self.rotation
+
+        def sum_rows(start: int, stop: int) -> None:
+            rows = slice(start, stop)
+            rotated_multisine_into(t[rows], phase[rows], rotation[rows], waves[rows], slopes[rows])
+
+        over_rows(sum_rows, len(t))
         amplitude = self.amplitude[:, None]
         return self.mean[:, None] + amplitude * waves, amplitude * slopes
 
