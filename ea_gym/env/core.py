@@ -70,6 +70,7 @@ class MaintenanceCore:
         self.nominal = model.parameter_vector()
         self._component_index = np.array([model.parameter_names.index(c) for c in self.components])
         self.limits = np.array([model.safe_limits[c] for c in self.components])
+        self._low, self._high = self.limits[:, 0].copy(), self.limits[:, 1].copy()
         wear = config.wear if config.wear is not None else {name: WearConfig() for name in self.components}
         self.degradation = Degradation(model, wear, self.components, n_systems)
         self.chain, self.monitor = _supervision(model, config, wear, n_systems, classifier, calibration_seed)
@@ -155,7 +156,7 @@ class MaintenanceCore:
     def _step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
         actions = np.asarray(actions)
         n_actions = len(self.actions)
-        if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or np.any((actions < 0) | (actions >= n_actions)):
+        if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or actions.min() < 0 or actions.max() >= n_actions:
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
         c, dt = self.config.costs, self.config.step_seconds
         items = np.zeros((len(COST_ITEMS) - 1, self.n))  # one row per cost item but the total
@@ -190,8 +191,8 @@ class MaintenanceCore:
         k = len(self.components)
         corrective = (actions >= 1) & (actions <= k)
         replace = actions > k
-        rows = np.flatnonzero(corrective)
-        if len(rows):
+        if corrective.any():
+            rows = np.flatnonzero(corrective)
             d = actions[rows] - 1
             j = self._component_index[d]
             direction = self._corrective_direction
@@ -207,18 +208,19 @@ class MaintenanceCore:
             for i, component in zip(rows, d):
                 events[i].append(CorrectiveStep(self.components[component]))
         self._corrective_direction[~corrective] = 0.0
-        replaced = np.flatnonzero(replace)
-        self._replace(replaced, actions[replaced] - 1 - k, self.config.costs.replace_downtime, rngs, events)
-        costs["replacement"][replaced] += self.config.costs.replacement
+        if replace.any():
+            replaced = np.flatnonzero(replace)
+            self._replace(replaced, actions[replaced] - 1 - k, self.config.costs.replace_downtime, rngs, events)
+            costs["replacement"][replaced] += self.config.costs.replacement
         return corrective | replace
 
     def _failures(
         self, running: np.ndarray, rngs: Sequence[np.random.Generator], costs: dict[str, np.ndarray], events: list[list[Event]]
     ) -> np.ndarray:
         """The running machines with a parameter outside its safe limits (N,) bool, their costs and events."""
-        low, high = self.limits[:, 0], self.limits[:, 1]
+        low, high = self._low, self._high
         values = self._theta[:, self._component_index]
-        failed = running & np.any((values < low) | (values > high), axis=1)
+        failed = running & ((values < low) | (values > high)).any(axis=1)
         if not failed.any():
             return failed
         broken = np.flatnonzero(failed)

@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
+from ea_gym._kernels.observation import observation_rows
 from ea_gym.env.config import EnvConfig
 
 OBSERVATION_BOUND = 1e6  # every value is clipped to +-OBSERVATION_BOUND (float32-safe; EA in J)
@@ -58,8 +59,17 @@ class Observer:
         self.n = n_systems
         self.elements, self.components, self.classes = elements, components, classes
         self.limits = limits
-        self._low, self._span = limits[:, 0], limits[:, 1] - limits[:, 0]
+        self._low, self._span = limits[:, 0].copy(), limits[:, 1] - limits[:, 0]
         self.idle = self._idle_outputs(nominal)
+        self._none = np.empty((n_systems, 0))  # the "sensors" mode's diagnosis, estimates and RUL: no columns
+        # each key's columns in the observation array, in the observation's order (``observation_rows``')
+        E, C = len(elements), len(components)
+        widths = {"ea": E, "eai": C, "residual": E, "time_since_maintenance": 1, "maintenance_in_progress": 1}
+        if config.obs_mode != "sensors":
+            widths |= {"diagnosis": len(classes), "parameter_estimate": len(limits), "rul": 3}
+        ends = np.cumsum(list(widths.values())).tolist()
+        self._columns = [(key, slice(end - width, end)) for (key, width), end in zip(widths.items(), ends)]
+        self._width = ends[-1]
 
     def space(self) -> spaces.Dict:
         """The Dict observation space of one system."""
@@ -109,42 +119,21 @@ class Observer:
             merged = {key: np.where(down.reshape((-1,) + (1,) * (idle[key].ndim - 1)), idle[key], outputs.get(key, idle[key])) for key in idle}
         else:
             merged = {**idle, **outputs}
-        residual = (merged["ea"] - merged["ea_reference"]) / np.maximum(merged["ea_reference"], RESIDUAL_FLOOR)
-        obs = {
-            "ea": merged["ea"],
-            "eai": merged["eai"],
-            "residual": residual,
-            "time_since_maintenance": since_maintenance[:, None],
-            "maintenance_in_progress": down.astype(float)[:, None],
-        }
         config = self.config
         if config.obs_mode == "oracle":
             if oracle is None:
                 raise ValueError("the oracle mode observes the truth: oracle must be given")
             diagnosis = np.zeros((self.n, len(self.classes)))
             diagnosis[np.arange(self.n), oracle.diagnosis_class] = 1.0
-            obs["diagnosis"] = diagnosis
-            obs["parameter_estimate"] = self.position(oracle.values)
-            obs["rul"] = np.repeat(oracle.rul[:, None], 3, axis=1)
+            values, rul = oracle.values, np.repeat(oracle.rul[:, None], 3, axis=1)
         elif config.obs_mode == "phm":
-            obs["diagnosis"] = merged["diagnosis"]
-            obs["parameter_estimate"] = self.position(merged["estimates"])
-            obs["rul"] = merged["rul"]
-        if "rul" in obs:
-            # NaN and inf read as the longest RUL, -inf as none (np.nan_to_num's mapping, then the clip)
-            obs["rul"] = np.clip(np.where(np.isnan(obs["rul"]), config.rul_max, obs["rul"]), 0.0, config.rul_max)
-        obs["time_since_maintenance"] = np.minimum(obs["time_since_maintenance"], self.longest_run)
-        # clipped and cast side by side in one array (a few numpy calls instead of two per key); each key a view on it
-        joined = np.concatenate(list(obs.values()), axis=1)
-        np.clip(joined, -OBSERVATION_BOUND, OBSERVATION_BOUND, out=joined)
-        observation = joined.astype(np.float32)
-        start = 0
-        for key, value in obs.items():
-            width = value.shape[1]
-            obs[key] = observation[:, start : start + width]
-            start += width
-        return obs
-
-    def position(self, values: np.ndarray) -> np.ndarray:
-        """Position of each maintainable parameter in its safe range: 0 at the lower limit, 1 at the upper."""
-        return np.clip((values - self._low) / self._span, *PARAMETER_POSITION_BOUNDS)
+            diagnosis, values, rul = merged["diagnosis"], merged["estimates"], merged["rul"]
+        else:
+            diagnosis = values = rul = self._none
+        # every key side by side in one float32 array, computed and clipped in one compiled pass; each key a view on it
+        observation = np.empty((self.n, self._width), np.float32)
+        observation_rows(
+            merged["ea"], merged["ea_reference"], merged["eai"], since_maintenance, down, diagnosis, values, self._low, self._span, rul,
+            float(config.rul_max), float(self.longest_run), RESIDUAL_FLOOR, *PARAMETER_POSITION_BOUNDS, OBSERVATION_BOUND, observation,
+        )
+        return {key: observation[:, columns] for key, columns in self._columns}

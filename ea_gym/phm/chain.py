@@ -86,7 +86,10 @@ class HealthStatus:
     @property
     def rul(self) -> np.ndarray:
         """Point RUL and its interval (s), (N, 3); inf where no End of Life is predicted."""
-        return np.stack([self.eol, self.eol_low, self.eol_high], axis=1) - self.t[:, None]
+        rul = np.empty((len(self.t), 3))  # filled column by column: np.stack's checks cost more than the copies
+        rul[:, 0], rul[:, 1], rul[:, 2] = self.eol, self.eol_low, self.eol_high
+        rul -= self.t[:, None]
+        return rul
 
 
 class PHMChain:
