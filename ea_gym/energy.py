@@ -15,7 +15,7 @@ from typing import Literal, TypeVar, overload
 
 import numpy as np
 
-from ea_gym._kernels.activity import interval_activities
+from ea_gym._kernels.activity import component_shares, interval_activities
 from ea_gym.bondgraph.elements import CForm, Kind
 
 Signals = TypeVar("Signals", np.ndarray, Mapping[str, np.ndarray])
@@ -169,7 +169,10 @@ def activity_shares(stacked: np.ndarray, names: Sequence[str]) -> np.ndarray:
 def component_activity_index(ea: np.ndarray, columns: np.ndarray, names: Sequence[str]) -> np.ndarray:
     """``activity_index`` of every row of ``ea`` (rows, E) in J: the components ``names`` are its ``columns``;
     returns (rows, C)."""
-    return np.ascontiguousarray(activity_shares(np.ascontiguousarray(ea.T[columns]), names).T)
+    shares = np.empty((len(ea), len(columns)))
+    if component_shares(np.asarray(ea, dtype=float), np.asarray(columns, dtype=np.intp), shares) >= 0:
+        activity_shares(np.ascontiguousarray(ea.T[columns]), names)  # raises, naming the component
+    return shares
 
 
 @dataclass(frozen=True)

@@ -8,6 +8,7 @@ from ea_gym import models
 from ea_gym.energy import (
     EnergyActivityAccumulator,
     activity_index,
+    activity_shares,
     component_activity_index,
     constitutive_power,
     cumulative_energy_activity,
@@ -249,6 +250,19 @@ def test_component_activity_index_by_rows_hand_computed():
     assert eai.flags.c_contiguous
     with pytest.raises(ValueError, match="'C'"):
         component_activity_index(np.array([[1.0, 0.0, -1.0]]), np.array([0, 2]), ("R", "C"))
+
+
+@pytest.mark.parametrize("rows", [1, 2, 3, 512])
+def test_component_activity_index_is_activity_shares_to_the_bit(rows):
+    # compiled: numpy's order of the sum (pairwise over one row's many components, row after row for several)
+    rng = np.random.default_rng(rows)
+    for components in (1, 3, 8, 9, 17, 40):
+        ea = np.abs(rng.normal(size=(rows, components + 2))) * 10.0 ** rng.integers(-5, 5, size=(rows, components + 2))
+        ea[rng.random(ea.shape) < 0.1] = 0.0
+        columns = rng.permutation(components + 2)[:components]
+        names = [f"c{k}" for k in range(components)]
+        expected = activity_shares(np.ascontiguousarray(ea.T[columns]), names).T
+        np.testing.assert_array_equal(component_activity_index(ea, columns, names).view(np.int64), expected.view(np.int64))
 
 
 def test_activity_index_of_a_simulation_sums_to_one(smd):

@@ -2,13 +2,18 @@
 
 Every EA in ea_gym is made of ``trapezoid_area``: the batch and streaming EA of ``ea_gym.energy`` from
 ``interval_activities``, the estimator's window sums from ``trapezoid_activity``, and the monitor's
-sub-window sums from ``trapezoid_area`` itself, in the loop that also sums the signed energy.
+sub-window sums from ``trapezoid_area`` itself, in the loop that also sums the signed energy. The
+Energy Activity Index (eq 5) of components, their shares of their summed EA: ``component_shares``.
 """
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
+
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 
 @numba.njit(cache=True, inline="always")
@@ -35,3 +40,30 @@ def interval_activities(power: np.ndarray, h: float) -> np.ndarray:
         for t in range(samples - 1):
             out[m, t] = trapezoid_area(power[m, t], power[m, t + 1], h)
     return out
+
+
+@numba.njit(cache=True)
+def component_shares(ea: np.ndarray, columns: np.ndarray, out: np.ndarray) -> int:
+    """EAI of every row of ``ea`` (rows, E) in J over its components' ``columns`` (C,) into ``out`` (rows, C):
+    each one's EA over their sum (as ``activity_shares`` adds them), 1 / C each where the sum is 0.
+
+    Returns -1, or (nothing written) the first component whose EA is not finite and >= 0 in some row.
+    """
+    rows, components = ea.shape[0], len(columns)
+    for k in range(components):
+        for r in range(rows):
+            value = ea[r, columns[k]]
+            if not (math.isfinite(value) and value >= 0.0):
+                return k
+    values, scratch = np.empty(components), summation_scratch()
+    for r in range(rows):
+        for k in range(components):
+            values[k] = ea[r, columns[k]]
+        # numpy sums a single row's shares pairwise (np.sum's order), several rows' row after row
+        total = numpy_sum(values, 0, components, scratch) if rows == 1 else 0.0
+        if rows > 1:
+            for k in range(components):
+                total += values[k]
+        for k in range(components):
+            out[r, k] = ea[r, columns[k]] / total if total > 0.0 else 1.0 / components
+    return -1

@@ -109,6 +109,7 @@ class Operation:
         self.monitor = monitor
         self.n = n_systems
         self.nominal = model.parameter_vector()  # the reference's parameters
+        self._nominal_rows = np.tile(self.nominal, (n_systems, 1))  # one per system, as the batch joins them
         self.h = 1.0 / sample_rate
         self.window = window
         self.samples = window_samples(window, self.h)
@@ -142,7 +143,7 @@ class Operation:
         u, du = self.load(self.elapsed)
         n = self.n
         # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
-        theta = np.concatenate([parameters, np.broadcast_to(self.nominal, parameters.shape)])
+        theta = np.concatenate([parameters, self._nominal_rows])
         loads, rates = self.model.source_inputs(np.concatenate([u, u]), np.concatenate([du, du]))
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
         gain = self.monitor.measurement_gain(theta)

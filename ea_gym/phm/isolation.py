@@ -150,6 +150,8 @@ class Isolation:
         """The hypotheses to estimate at the next step, (N, D): every one until the isolation is confident of
         a suspect (so that a change of suspect finds a history), then the suspect alone."""
         s = self.state
+        if not s.confident.any():
+            return np.ones((self.n, parameters), dtype=bool)
         return np.where(s.confident[:, None], np.arange(parameters) == s.isolated[:, None] - 1, True)
 
     def counted(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
