@@ -238,8 +238,8 @@ def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         first, second = theta[0].tobytes(), theta[1].tobytes()
         if first == second:
             return theta[:1].copy(), np.zeros(2, dtype=np.intp)
-        order = np.array([0, 1] if first < second else [1, 0], dtype=np.intp)
-        return theta[order], order
+        pair = np.array([0, 1] if first < second else [1, 0], dtype=np.intp)
+        return theta[pair], pair
     if n <= FEW_ROWS:  # np.unique's order (its void rows compare as their bytes do), without its sort's overhead
         rows = [row.tobytes() for row in theta]
         order = sorted(set(rows))

@@ -144,7 +144,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
         if self._episode_over:
             raise RuntimeError("step() needs reset() first: before the first reset and after an episode ends (terminated or truncated)")
         # an int in range (the usual action) needs none of the space's checks, which cost more than the rest of this method
-        usual = (type(action) is int or isinstance(action, np.integer)) and 0 <= action < self.action_space.n
+        usual = (type(action) is int or isinstance(action, np.integer)) and 0 <= action < len(self.actions)
         if not usual and (isinstance(action, (bool, np.bool_)) or not self.action_space.contains(action)):
             raise ValueError(f"action must be an int in [0, {len(self.actions) - 1}] ({self.action_meanings}), got {action!r}")
         result = self.core.step(np.array([int(action)]), [self.np_random])
