@@ -166,10 +166,13 @@ class Isolation:
         # isolation only matters once a fault is detected, and needs a full frame
         counted = np.flatnonzero(self.counted(history, alarm))
         if len(counted):
-            # the frame of every system, read in place from the history; the features of the counted ones
+            # the frame of every system, read in place from the history, its sums those of the counted ones (the
+            # others' are zero: their features are not read)
             n, _, states, steps = history.noise.shape
+            components = history.gram.shape[1]
+            gram, cross, noise = np.zeros((n, components, components)), np.zeros((n, components)), np.zeros((n, 2 * states))
             noise_sums = history.noise.reshape(n, 2 * states, steps)
-            gram, cross, noise = history_sums(history.gram, history.cross, noise_sums, np.arange(n), self.frame_steps)
+            gram[counted], cross[counted], noise[counted] = history_sums(history.gram, history.cross, noise_sums, counted, self.frame_steps)
             frame = self.monitor.frame_of(history.ea, history.ea_reference, gram, cross, noise.reshape(n, 2, states))
             features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth, counted)
             probabilities[counted] = self.classifier.predict_proba(features)
