@@ -121,6 +121,8 @@ def test_numpy_sum_adds_as_numpy_does_to_the_bit():
         values = rng.normal(size=count + 5) * 10.0 ** rng.uniform(-8, 8, count + 5)
         for start in (0, 3):
             assert np.float64(numpy_sum(values, start, start + count, scratch)).tobytes() == np.sum(values[start : start + count]).tobytes()
+        strided = np.repeat(values, 2)[::2]  # every other value of a longer array: a view, not contiguous
+        assert np.float64(numpy_sum(strided, 1, count, scratch)).tobytes() == np.sum(values[1:count]).tobytes()
     assert np.float64(numpy_sum(np.array([-0.0, -0.0]), 0, 2, scratch)).tobytes() == np.sum(np.array([-0.0, -0.0])).tobytes()
     assert np.float64(numpy_sum(np.array([-0.0]), 0, 1, scratch)).tobytes() == np.sum(np.array([-0.0])).tobytes()
 
