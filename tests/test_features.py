@@ -9,6 +9,7 @@ from ea_gym._kernels.features import spectrum_peaks
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, frame_features, residual_spectrogram, spectral_peaks
 from ea_gym.numerics import TINY
+from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
 
 
 def peaks_row_by_row(residual, sub_window, scale, max_frequency, min_relative=0.05):
@@ -112,6 +113,20 @@ def test_frame_features_equal_their_numpy_definition_to_the_bit(variant):
         rows = np.array([7, 1, 4])
         assert frame_features(frame, variant, 2.0, rows).tobytes() == everything[rows].tobytes()
         assert frame_features(frame, variant, 2.0, np.array([], dtype=int)).shape == (0, everything.shape[1])
+
+
+def test_frame_features_are_the_same_on_one_kernel_thread_and_on_two():
+    frame = random_frame(np.random.default_rng(8), 5 * MIN_ROWS_PER_PART)
+    rows = np.arange(len(frame.ea))[::-1]
+    previous = kernel_threads()
+    try:
+        by_threads = {}
+        for threads in (1, 2):
+            set_kernel_threads(threads)
+            by_threads[threads] = [frame_features(frame, variant, 2.0, rows).tobytes() for variant in VARIANTS]
+    finally:
+        set_kernel_threads(previous)
+    assert by_threads[1] == by_threads[2]
 
 
 def test_numpy_sum_adds_as_numpy_does_to_the_bit():

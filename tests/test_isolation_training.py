@@ -27,6 +27,7 @@ from ea_gym.diagnosis.training import (
     train_isolation,
 )
 from ea_gym.models import spring_mass_damper
+from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -199,9 +200,16 @@ def test_predict_proba_is_the_network_modules_forward_and_each_row_its_own(train
             by_modules = torch.softmax(classifier.network(inputs), dim=1).numpy()
         batch = classifier.predict_proba(features)
         np.testing.assert_allclose(batch, by_modules, rtol=1e-12, atol=1e-15)
-        # a row alone (a single environment's) and among the others (a batch of alarmed systems): the same bits
+        # a row alone (a single environment's) and among the others (a batch of alarmed systems, its rows split
+        # over two kernel threads): the same bits
         alone = np.concatenate([classifier.predict_proba(features[i : i + 1]) for i in range(len(features))])
-        assert alone.tobytes() == batch.tobytes()
+        previous = kernel_threads()
+        try:
+            set_kernel_threads(2)
+            assert len(features) >= 2 * MIN_ROWS_PER_PART  # enough rows to split
+            assert alone.tobytes() == batch.tobytes() == classifier.predict_proba(features).tobytes()
+        finally:
+            set_kernel_threads(previous)
     # training anew replaces the network: inference follows it
     retrained = FaultClassifier(shipped.classes, "strong", shipped.n_features)
     retrained.predict_proba(features[:1])
