@@ -10,6 +10,7 @@ from ea_gym.models import rlc_circuit, spring_mass_damper
 from ea_gym.phm.estimation import push_median
 from ea_gym.phm.history import MonitorHistory, push_window
 from ea_gym.phm.inversion import EAInversion
+from ea_gym.threads import kernel_threads, set_kernel_threads
 
 
 def _close(actual, expected):
@@ -76,6 +77,30 @@ def test_chunks_with_context_and_fresh_systems_match_numpy(make_model):
         expected, context = _reference_update(monitor, context, measured, reference, load)
         for key, value in expected.items():
             _close(getattr(window, key), value)
+
+
+def test_update_is_the_same_on_one_kernel_thread_and_on_two():
+    # 40 systems: one part in blocks of 32 and 8 on one thread, two parts of 20 on two; the loads
+    # repeat across the parts' boundary, and systems start over in the middle
+    model = spring_mass_damper()
+    rng = np.random.default_rng(5)
+    n, nx, L = 40, len(model.state_names), 100
+    monitors = {threads: Monitor(model, 0.01, n_systems=n) for threads in (1, 2)}
+    previous = kernel_threads()
+    try:
+        for chunk in range(3):
+            measured, reference = rng.standard_normal((2, n, nx, L + 1))
+            load = np.repeat(rng.standard_normal((n // 4, L + 1)), 4, axis=0)
+            windows = {}
+            for threads, monitor in monitors.items():
+                set_kernel_threads(threads)
+                if chunk == 2:
+                    monitor.reset(np.arange(n) % 3 == 0)
+                windows[threads] = monitor.update(measured, reference, load)
+            for name in ("ea", "ea_reference", "gram", "cross", "balance", "signals", "noise"):
+                np.testing.assert_array_equal(getattr(windows[1], name), getattr(windows[2], name))
+    finally:
+        set_kernel_threads(previous)
 
 
 def test_powers_and_signature_match_numpy_for_shared_and_distinct_loads():

@@ -259,18 +259,21 @@ def _sub_sums_of(areas: np.ndarray, n_sub: int) -> np.ndarray:
 
 def test_padded_chunk_mirrors_a_fresh_chunk_and_keeps_the_context():
     rng = _rng(14)
-    n, nx, T, H_context = 2, 2, 12, 3
+    n, nx, T, H_context = 3, 2, 12, 3
     measured, reference, load = rng.standard_normal((n, nx, T)), rng.standard_normal((n, nx, T)), rng.standard_normal((n, T))
     context = np.full((2 * n, nx + 1, H_context), np.nan)
     context[1] = 7.0  # system 1's real rows carry context from a previous chunk
-    padded = np.empty((2 * n, nx + 1, H_context + T))
-    padded_chunk(measured, reference, load, context, padded)
     signals = np.concatenate([np.concatenate([measured, load[:, None]], 1), np.concatenate([reference, load[:, None]], 1)])
-    np.testing.assert_array_equal(padded[..., H_context:], signals)
     mirrored = signals[..., H_context:0:-1]
-    np.testing.assert_array_equal(padded[[0, 2, 3], :, :H_context], mirrored[[0, 2, 3]])
-    np.testing.assert_array_equal(padded[1, :, :H_context], 7.0)
-    np.testing.assert_array_equal(context, signals[..., T - H_context - 1 : T - 1])
+    # systems 1 and 2 of 3: their real rows (1, 2), then their reference rows (4, 5)
+    padded = np.empty((4, nx + 1, H_context + T))
+    padded_chunk(measured, reference, load, context, 1, 3, padded)
+    rows = [1, 2, 4, 5]
+    np.testing.assert_array_equal(padded[..., H_context:], signals[rows])
+    np.testing.assert_array_equal(padded[[1, 2, 3], :, :H_context], mirrored[[2, 4, 5]])
+    np.testing.assert_array_equal(padded[0, :, :H_context], 7.0)
+    np.testing.assert_array_equal(context[rows], signals[rows][..., T - H_context - 1 : T - 1])
+    assert np.isnan(context[[0, 3]]).all()  # system 0's context is left alone
 
 
 # --- prognosis: the drift End of Life ---------------------------------------------------------------
@@ -359,9 +362,11 @@ def test_detect_equals_the_numpy_statistic_and_alarm_to_the_bit():
     expected_state = (above.copy(), alarm.copy(), detection_time.copy())
     expected = _detect_numpy(ea, ea_reference, window, balance, dissipated, steps, 100, span_samples, thresholds, 3, time, expected_state)
     statistic = np.empty((n, elements + 1))
-    detect(
-        ea, ea_reference, window, balance, dissipated, steps, 100, span_samples, thresholds, 3, time, TINY, above, alarm, detection_time, statistic
-    )
+    for start, stop in ((0, 17), (17, n)):  # in two parts, as on two kernel threads
+        detect(
+            start, stop, ea, ea_reference, window, balance, dissipated, steps, 100, span_samples, thresholds, 3, time, TINY, above, alarm,
+            detection_time, statistic,
+        )
     np.testing.assert_array_equal(statistic, expected)
     for got, want in zip((above, alarm, detection_time), expected_state):
         np.testing.assert_array_equal(got, want)

@@ -13,13 +13,14 @@ from ea_gym._kernels.numpy_forms import numpy_maximum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 
-@numba.njit(cache=True)
+@numba.njit(cache=True, nogil=True)
 def detect(
-    ea: np.ndarray, ea_reference: np.ndarray, window: int, balance: np.ndarray, dissipated: np.ndarray, steps: np.ndarray, step_samples: int,
-    span_samples: np.ndarray, thresholds: np.ndarray, persistence: int, time: np.ndarray, tiny: float,
+    start: int, stop: int, ea: np.ndarray, ea_reference: np.ndarray, window: int, balance: np.ndarray, dissipated: np.ndarray,
+    steps: np.ndarray, step_samples: int, span_samples: np.ndarray, thresholds: np.ndarray, persistence: int, time: np.ndarray, tiny: float,
     above: np.ndarray, alarm: np.ndarray, detection_time: np.ndarray, statistic: np.ndarray,
 ) -> None:
-    """Every system's detection statistic after its newest step, and its alarm (N systems, E elements).
+    """Systems [start, stop)'s detection statistic after their newest step, and their alarm (N systems, E
+    elements); each system's alone (the GIL released: parts of the systems run on several threads).
 
     Args:
         ea, ea_reference: real and reference EA per sub-window (N, E, S), the last ``window`` summed.
@@ -34,7 +35,7 @@ def detect(
     n_elements = ea.shape[1]
     subs = ea.shape[2]
     scratch = summation_scratch()
-    for m in range(ea.shape[0]):
+    for m in range(start, stop):
         seen = steps[m] * step_samples
         for e in range(n_elements + 1):
             if e < n_elements:

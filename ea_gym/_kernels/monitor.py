@@ -262,17 +262,78 @@ def noise_sums(raw: np.ndarray, smooth: np.ndarray) -> np.ndarray:
 
 
 @numba.njit(cache=True)
-def padded_chunk(measured: np.ndarray, reference: np.ndarray, load: np.ndarray, context: np.ndarray, padded: np.ndarray) -> None:
-    """Real then reference rows (2N, nx + 1, H + L + 1) with the load as last channel, written to
-    ``padded``, each led by its H samples of smoothing context: ``context`` (2N, nx + 1, H), or where it
-    is NaN the chunk mirrored about its first sample. ``context`` becomes the next chunk's."""
+def padded_chunk(
+    measured: np.ndarray, reference: np.ndarray, load: np.ndarray, context: np.ndarray, start: int, stop: int, padded: np.ndarray
+) -> None:
+    """Real then reference rows of systems [start, stop) (2 (stop - start), nx + 1, H + L + 1) with the
+    load as last channel, written to ``padded``, each led by its H samples of smoothing context:
+    ``context`` (2N, nx + 1, H), N real then N reference rows, or where it is NaN the chunk mirrored
+    about its first sample. Those systems' ``context`` becomes their next chunk's."""
     n, nx, T = measured.shape
     H = context.shape[2]
-    for r in range(2 * n):
+    k = stop - start
+    for i in range(2 * k):
+        m = start + i % k
+        real = i < k
         for c in range(nx + 1):
-            x = load[r % n] if c == nx else (measured[r, c] if r < n else reference[r - n, c])
-            y, previous = padded[r, c], context[r, c]
-            for k in range(H):
-                y[k] = x[H - k] if np.isnan(previous[k]) else previous[k]
+            x = load[m] if c == nx else (measured[m, c] if real else reference[m, c])
+            y, previous = padded[i, c], context[m if real else n + m, c]
+            for j in range(H):
+                y[j] = x[H - j] if np.isnan(previous[j]) else previous[j]
             copy(x, 0, y, H)
             copy(x, T - H - 1, previous, 0)
+
+
+@numba.njit(cache=True, nogil=True)
+def monitor_chunk(
+    start: int, stop: int, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, context: np.ndarray,
+    moments: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], smoother: tuple[np.ndarray, np.ndarray, np.ndarray],
+    differentiator: tuple[np.ndarray, np.ndarray, np.ndarray], scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray, constant: np.ndarray,
+    effort: np.ndarray, flow: np.ndarray, sign: np.ndarray, inertia: np.ndarray, h: float, n_sub: int, n_balance: int,
+    components: np.ndarray, sources: np.ndarray,
+    ea: np.ndarray, residual: np.ndarray, gram: np.ndarray, cross: np.ndarray, noise: np.ndarray, signals: np.ndarray,
+) -> bool:
+    """``ea_gym.diagnosis.monitor.Monitor.update`` for systems [start, stop) of N: their real and reference
+    rows padded with their context (``padded_chunk``), smoothed (``smooth_rows``), their elements'
+    powers (``element_powers``) and the chunk's statistics (``chunk_statistics``); a system's results
+    do not depend on the others', so parts of the systems run on several threads (GIL released).
+
+    Args:
+        measured, reference: the chunk's signals (N, nx, L + 1); load: (N, L + 1); context: as in ``padded_chunk``.
+        moments, smoother, differentiator, inertia: as in ``smooth_rows``; scale, Cy, Dy, constant, effort,
+            flow, sign: as in ``element_powers``; h, n_sub, n_balance, components, sources: as in ``chunk_statistics``.
+        ea: written for the part's systems: EA (2N, E, n_sub), N real then N reference rows; residual, gram,
+            cross, noise: ``chunk_statistics``' (N, ...); signals: the smoothed measured signals (N, nx, L + 1).
+
+    Returns:
+        whether every power of the part is finite.
+    """
+    n, nx, T = measured.shape
+    H = context.shape[2]
+    # blocks of LANES systems: their real and reference rows fill the filter's lanes twice and their
+    # loads once, and a block's working arrays stay in the core's cache
+    block = min(stop - start, LANES)
+    padded = np.empty((2 * block, nx + 1, H + T))
+    smooth = np.empty((2 * block, nx + 1, T))
+    slope = np.empty((2 * block, len(inertia), T))
+    power = np.empty((2 * block, len(effort), T))
+    finite = True
+    for first in range(start, stop, block):
+        last = min(first + block, stop)
+        k = last - first
+        rows = slice(0, 2 * k)
+        padded_chunk(measured, reference, load, context, first, last, padded[rows])
+        smooth_rows(padded[rows], 0, H, moments, smoother, differentiator, inertia, smooth[rows], slope[rows])
+        element_powers(smooth[rows], slope[rows], scale, Cy, Dy, constant, effort, flow, sign, inertia, power[rows])
+        finite_block, block_ea, block_residual, block_gram, block_cross, block_noise = chunk_statistics(
+            power[rows], smooth[rows], measured[first:last, :, 1:], h, n_sub, n_balance, components, sources, inertia
+        )
+        finite &= finite_block
+        ea[first:last] = block_ea[:k]
+        ea[n + first : n + last] = block_ea[k:]
+        residual[first:last] = block_residual
+        gram[first:last] = block_gram
+        cross[first:last] = block_cross
+        noise[first:last] = block_noise
+        signals[first:last] = smooth[:k, :nx]
+    return finite

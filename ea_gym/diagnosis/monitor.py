@@ -23,13 +23,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ea_gym._kernels.monitor import chunk_statistics, element_powers, padded_chunk, smooth_rows
+from ea_gym._kernels.monitor import element_powers, monitor_chunk, smooth_rows
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import Frame
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
 from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
+from ea_gym.threads import over_rows
 
 
 @dataclass(frozen=True)
@@ -143,6 +144,9 @@ class Monitor:
             [(j, self.elements.index(name), inertance) for name, (j, inertance) in self._inertance.items()], dtype=float
         ).reshape(-1, 3)
         self._context: np.ndarray | None = None  # last samples of the previous chunk, real then reference
+        # the kernels' arguments: the filters' coefficients (``smooth_rows``), the nominal laws (``element_powers``)
+        self._smoothing = (self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1))
+        self._laws = (self._to_state, self._Cy, self._Dy0, self._Dy_constant, *self._bonds, self._inertia)
 
     def measurement_gain(self, parameters: np.ndarray) -> np.ndarray:
         """The diagonal of ``measurement_matrix``, (..., nx): 1 / I on each I element's momentum, 1 elsewhere."""
@@ -200,10 +204,8 @@ class Monitor:
         smooth = self.buffer("smooth", (M, channels, L))
         slope = self.buffer("slope", (M, len(self._inertia), L))
         power = self.buffer("power", (M, len(self.elements), L))
-        smooth_rows(
-            rows, skip, cut, self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1), self._inertia, smooth, slope
-        )
-        element_powers(smooth, slope, self._to_state, self._Cy, self._Dy0, self._Dy_constant, *self._bonds, self._inertia, power)
+        smooth_rows(rows, skip, cut, *self._smoothing, self._inertia, smooth, slope)
+        element_powers(smooth, slope, *self._laws, power)
         return power, smooth
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray) -> MonitorWindow:
@@ -225,17 +227,27 @@ class Monitor:
         if self._context is None:
             self._context = np.full((2 * n, nx + 1, half), np.nan)
         measured, reference, load = (np.ascontiguousarray(x, dtype=float) for x in (measured, reference, load))
-        padded = self.buffer("padded", (2 * n, nx + 1, half + T))
-        padded_chunk(measured, reference, load, self._context, padded)
-        power, smooth = self._powers(padded, 0, half)
-        finite, ea, residual, gram, cross, noise = chunk_statistics(
-            power, smooth, measured[..., 1:], self.h, self.n_sub, self.n_balance, self.component_index, self._source_index, self._inertia
-        )
-        if not finite:
+        subs = (T - 1) // self.n_sub
+        balances, C = subs // self.n_balance, len(self.components)
+        ea = np.empty((2 * n, len(self.elements), subs))
+        residual, gram, cross = np.empty((n, balances)), np.empty((n, balances, C, C)), np.empty((n, balances, C))
+        noise, signals = np.empty((n, 2, nx)), np.empty((n, nx, T))
+        finite: list[bool] = []
+        smoothing, laws, context = self._smoothing, self._laws, self._context
+        h, n_sub, n_balance, components, sources = self.h, self.n_sub, self.n_balance, self.component_index, self._source_index
+
+        def chunk_rows(start: int, stop: int) -> None:
+            finite.append(
+                monitor_chunk(
+                    start, stop, measured, reference, load, context, *smoothing, *laws, h, n_sub, n_balance, components, sources,
+                    ea, residual, gram, cross, noise, signals,
+                )
+            )
+
+        over_rows(chunk_rows, n)
+        if not all(finite):
             raise ValueError("power contains NaN or inf; Energy Activity needs finite signals")
-        return MonitorWindow(
-            ea=ea[:n], ea_reference=ea[n:], gram=gram, cross=cross, balance=residual, signals=smooth[:n, :-1].copy(), noise=noise
-        )
+        return MonitorWindow(ea=ea[:n], ea_reference=ea[n:], gram=gram, cross=cross, balance=residual, signals=signals, noise=noise)
 
     def frame(self, windows: list[MonitorWindow]) -> Frame:
         """Join consecutive chunks' outputs into one isolation frame."""

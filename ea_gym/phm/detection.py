@@ -23,6 +23,7 @@ from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.history import MonitorHistory, rows_of
 from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.threads import over_rows
 
 if TYPE_CHECKING:
     from ea_gym.phm.config import PHMConfig
@@ -127,10 +128,17 @@ class Detector:
         full); raises the alarm of systems above threshold long enough. Compiled, numpy's sums to the bit."""
         s = self.state
         statistic = np.empty((len(history.time), len(self.thresholds)))
-        detect(
-            history.ea, history.ea_reference, self.window_subs, history.balance, history.dissipated, history.steps, self.step_samples,
-            self.span_samples, self.thresholds, self.config.persistence, history.time, TINY, s.above, s.alarm, s.detection_time, statistic,
+        ea, ea_reference, balance, dissipated, steps, time = (
+            history.ea, history.ea_reference, history.balance, history.dissipated, history.steps, history.time
         )
+
+        def detect_rows(start: int, stop: int) -> None:
+            detect(
+                start, stop, ea, ea_reference, self.window_subs, balance, dissipated, steps, self.step_samples, self.span_samples,
+                self.thresholds, self.config.persistence, time, TINY, s.above, s.alarm, s.detection_time, statistic,
+            )
+
+        over_rows(detect_rows, len(statistic))
         return statistic
 
 
