@@ -51,14 +51,19 @@ def rotated_multisine(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray) -
     """
     total = np.empty(t.shape)
     slope = np.empty(t.shape)
-    rotated_multisine_into(t, phases, rotation, total, slope)
+    # offset 0 and scale 1 leave the sums' bits as they are (a sum from +0.0 is never -0.0)
+    rotated_multisine_into(t, phases, rotation, np.zeros(len(t)), np.ones(len(t)), total, slope)
     return total, slope
 
 
 @numba.njit(cache=True, nogil=True)
-def rotated_multisine_into(t: np.ndarray, phases: np.ndarray, rotation: np.ndarray, total: np.ndarray, slope: np.ndarray) -> None:
-    """``rotated_multisine`` written into ``total`` and ``slope`` (N, T). Each system's arithmetic is its own
-    (the same in any block, in any lane), so a batch's rows may be split over threads (``ea_gym.threads.over_rows``)."""
+def rotated_multisine_into(
+    t: np.ndarray, phases: np.ndarray, rotation: np.ndarray, offset: np.ndarray, scale: np.ndarray, total: np.ndarray, slope: np.ndarray
+) -> None:
+    """offset + scale x ``rotated_multisine`` into ``total`` and scale x its derivative into ``slope`` (N, T),
+    with each system's ``offset`` and ``scale`` (N,) (a load's mean and amplitude). Each system's arithmetic
+    is its own (the same in any block, in any lane), so a batch's rows may be split over threads
+    (``ea_gym.threads.over_rows``)."""
     n_sys, n_samples = t.shape
     components = phases.shape[1]
     B = min(SYSTEMS_BLOCK, n_sys)
@@ -85,5 +90,5 @@ def rotated_multisine_into(t: np.ndarray, phases: np.ndarray, rotation: np.ndarr
                     rate[b] += omega[i, b] * c[i, b]
                     s[i, b], c[i, b] = s[i, b] * cos_step[i, b] + c[i, b] * sin_step[i, b], c[i, b] * cos_step[i, b] - s[i, b] * sin_step[i, b]
             for b in range(lanes):
-                total[n0 + b, k] = wave[b]
-                slope[n0 + b, k] = rate[b]
+                total[n0 + b, k] = offset[n0 + b] + scale[n0 + b] * wave[b]
+                slope[n0 + b, k] = scale[n0 + b] * rate[b]

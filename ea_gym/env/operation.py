@@ -60,16 +60,15 @@ class Loads:
 
     def signal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Each system's load and its time derivative at its times ``t`` (N, T)."""
-        waves, slopes = np.empty(t.shape), np.empty(t.shape)
-        phase, rotation = self.phase, self.rotation
+        load, rate = np.empty(t.shape), np.empty(t.shape)
+        phase, rotation, mean, amplitude = self.phase, self.rotation, self.mean, self.amplitude
 
-        def sum_rows(start: int, stop: int) -> None:
+        def load_rows(start: int, stop: int) -> None:
             rows = slice(start, stop)
-            rotated_multisine_into(t[rows], phase[rows], rotation[rows], waves[rows], slopes[rows])
+            rotated_multisine_into(t[rows], phase[rows], rotation[rows], mean[rows], amplitude[rows], load[rows], rate[rows])
 
-        over_rows(sum_rows, len(t))
-        amplitude = self.amplitude[:, None]
-        return self.mean[:, None] + amplitude * waves, amplitude * slopes
+        over_rows(load_rows, len(t))
+        return load, rate
 
 
 @dataclass(frozen=True)
