@@ -63,12 +63,13 @@ def test_fused_kernel_handles_several_inputs_and_shared_matrices():
     Phi = 0.3 * rng.standard_normal((4, nx, nx))
     Gamma = rng.standard_normal((4, nx, 4 * nu))
     index = rng.integers(0, 4, n)
-    u, du = rng.standard_normal((2, n, samples, nu))
+    u, du = rng.standard_normal((2, 3, samples, nu))
+    inputs = rng.integers(0, 3, n)  # systems driven by shared input rows
     x0 = rng.standard_normal((n, nx))
-    expected = propagate(Discretization(Phi[index][:, None], Gamma[index][:, None]), hermite_coefficients(u, du, h), x0)
+    expected = propagate(Discretization(Phi[index][:, None], Gamma[index][:, None]), hermite_coefficients(u[inputs], du[inputs], h), x0)
     signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
     gain = rng.uniform(0.5, 2.0, (n, nx))
-    simulate_hermite(Phi, Gamma, index, u, du, h, x0, gain, signals, last)
+    simulate_hermite(Phi, Gamma, index, u, du, inputs, h, x0, gain, signals, last)
     np.testing.assert_array_equal(signals, expected.transpose(0, 2, 1) * gain[:, :, None])
     np.testing.assert_array_equal(last, expected[:, -1])
 
@@ -90,6 +91,14 @@ def test_measured_simulation_is_the_states_times_the_gains_in_the_sensors_layout
     simulate_measured(space, 0.01, u, du, theta, x0, gain, out=wider[:, :-1])
     np.testing.assert_array_equal(wider[:, :-1], signals)
     assert np.isnan(wider[:, -1]).all()
+    # systems driven by shared rows of u: the same as those rows repeated
+    inputs = np.array([1, 0, 1, 1, 0])
+    shared = simulate_measured(space, 0.01, u[:2], du[:2], theta, x0, gain, inputs=inputs)
+    repeated = simulate_measured(space, 0.01, u[inputs], du[inputs], theta, x0, gain)
+    np.testing.assert_array_equal(shared[0], repeated[0])
+    np.testing.assert_array_equal(shared[1], repeated[1])
+    with pytest.raises(ValueError, match="inputs"):
+        simulate_measured(space, 0.01, u[:2], du[:2], theta, x0, gain, inputs=np.array([0, 1, 2, 0, 1]))
 
 
 def test_the_last_discretization_is_reused_for_the_same_rows_only():

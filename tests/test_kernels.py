@@ -162,7 +162,7 @@ def test_simulate_hermite_equals_the_recursion_on_hermite_coefficients():
     u, du = rng.standard_normal((2, n, samples, nu))
     x0, gain = rng.standard_normal((n, nx)), rng.uniform(0.5, 2.0, (n, nx))
     signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
-    simulate_hermite(Phi, Gamma, index, u, du, H, x0, gain, signals, last)
+    simulate_hermite(Phi, Gamma, index, u, du, np.arange(n), H, x0, gain, signals, last)
     x = _recursion(Phi[index][:, None], Gamma[index][:, None], hermite_coefficients(u, du, H), x0)
     np.testing.assert_allclose(signals, x.transpose(0, 2, 1) * gain[:, :, None], rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(last, x[:, -1], rtol=1e-10, atol=1e-12)

@@ -295,7 +295,7 @@ def _hermite_states(Phi, Gamma, index, u, du, h, x0):
     """The blocked kernel's states (N, T, nx) at unit gains; its last states must be the final samples."""
     n, samples, nx = len(x0), u.shape[1], Phi.shape[1]
     signals, last = np.empty((n, nx, samples)), np.empty((n, nx))
-    simulate_hermite(Phi, Gamma, index, u, du, h, x0, np.ones((n, nx)), signals, last)
+    simulate_hermite(Phi, Gamma, index, u, du, np.arange(n), h, x0, np.ones((n, nx)), signals, last)
     np.testing.assert_array_equal(last, signals[..., -1])
     return signals.transpose(0, 2, 1)
 

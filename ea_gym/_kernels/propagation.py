@@ -36,11 +36,12 @@ SAMPLES_CHUNK = 16  # samples of a block's lane-major copies
 
 @numba.njit(cache=True, nogil=True)
 def simulate_hermite(
-    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, h: float, x0: np.ndarray,
+    Phi: np.ndarray, Gamma: np.ndarray, index: np.ndarray, u: np.ndarray, du: np.ndarray, inputs: np.ndarray, h: float, x0: np.ndarray,
     gain: np.ndarray, signals: np.ndarray, last: np.ndarray,
 ) -> None:
-    """``propagate_states`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s and the Hermite
-    coefficients of ``ea_gym.bondgraph.simulation.hermite_coefficients`` computed on the fly, in the same arithmetic (same result).
+    """``propagate_states`` with constant matrices Phi[index[s]], Gamma[index[s]] for system s, driven by the
+    inputs u[inputs[s]], du[inputs[s]], and the Hermite coefficients of
+    ``ea_gym.bondgraph.simulation.hermite_coefficients`` computed on the fly, in the same arithmetic (same result).
     Writes gain[s, i] x_i of system s at every sample to signals (N, nx, T) and its states at the
     last sample to last (N, nx).
 
@@ -49,7 +50,7 @@ def simulate_hermite(
     takes the same operations in the same order as alone, so its result does not depend on the batch:
     a batch's rows may be split over threads (``ea_gym.threads.over_rows``).
     """
-    n_sys, n_samples, nu = u.shape
+    n_sys, n_samples, nu = len(index), u.shape[1], u.shape[2]
     nx = Phi.shape[1]
     m = Gamma.shape[2]
     h2 = h * h
@@ -67,7 +68,7 @@ def simulate_hermite(
         start_block(Phi, Gamma, index, x0, gain, s0, lanes, P, G, X, signals)
         for k0 in range(0, n_samples - 1, SAMPLES_CHUNK):
             steps = min(SAMPLES_CHUNK, n_samples - 1 - k0)
-            load_chunk(u, du, s0, k0, steps, lanes, load)
+            load_chunk(u, du, inputs, s0, k0, steps, lanes, load)
             for k in range(steps):
                 hermite_block(load, k, h, h2, lanes, w)
                 step_block(P, G, X, k, w, lanes)
@@ -99,14 +100,14 @@ def start_block(
 
 
 @numba.njit(cache=True, inline="always")
-def load_chunk(u: np.ndarray, du: np.ndarray, s0: int, k0: int, steps: int, lanes: int, load: np.ndarray) -> None:
-    """load[k, 0 / 1, c, b]: u and du of input c of system s0 + b at sample k0 + k, for k = 0..steps."""
+def load_chunk(u: np.ndarray, du: np.ndarray, inputs: np.ndarray, s0: int, k0: int, steps: int, lanes: int, load: np.ndarray) -> None:
+    """load[k, 0 / 1, c, b]: u and du of input c of system s0 + b (row inputs[s0 + b]) at sample k0 + k, for k = 0..steps."""
     nu = u.shape[2]
     for k in range(steps + 1):
         for c in range(nu):
             for b in range(lanes):
-                load[k, 0, c, b] = u[s0 + b, k0 + k, c]
-                load[k, 1, c, b] = du[s0 + b, k0 + k, c]
+                load[k, 0, c, b] = u[inputs[s0 + b], k0 + k, c]
+                load[k, 1, c, b] = du[inputs[s0 + b], k0 + k, c]
 
 
 @numba.njit(cache=True, inline="always")

@@ -301,15 +301,18 @@ def simulate_measured(
     gain: np.ndarray,
     out: np.ndarray | None = None,
     last_step: LastDiscretization | None = None,
+    inputs: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``simulate_batch`` measured through diagonal measurement matrices, in the sensors' layout.
 
     Args:
-        u, du, theta, x0: as for ``simulate_batch``.
+        u, du, theta, x0: as for ``simulate_batch``; u and du may hold fewer rows than the systems where ``inputs`` says
+            which row drives each system.
         gain: each system's measurement gain per state, (N, nx) (``Monitor.measurement_gain``).
         out: where to write the signals, (N, nx, T + 1); None: a new array.
         last_step: the discretization of the previous call's distinct parameter rows, reused when this
             call's are the same (a healthy batch's, step after step), and replaced when they are not.
+        inputs: the row of u and du that drives each system, (N,) integers; None: system i's own row i.
 
     Returns:
         the signals gain x at every sample, (N, nx, T + 1), equal to the states of ``simulate_batch``
@@ -317,11 +320,14 @@ def simulate_measured(
     """
     u, du, x0 = np.asarray(u, dtype=float), np.asarray(du, dtype=float), np.asarray(x0, dtype=float)
     n, nx = len(theta), model.n_states
-    if u.ndim != 3 or du.shape != u.shape or u.shape[0] != n or u.shape[2] != model.n_inputs or x0.shape != (n, nx):
+    rows = np.arange(n) if inputs is None else np.asarray(inputs)
+    if u.ndim != 3 or du.shape != u.shape or (inputs is None and len(u) != n) or u.shape[2] != model.n_inputs or x0.shape != (n, nx):
         raise ValueError(
             f"simulate_batch: u and du must be (N, T + 1, {model.n_inputs}) and x0 (N, {nx}) for N = {n} parameter rows; "
             f"got u {u.shape}, du {du.shape}, x0 {x0.shape}"
         )
+    if rows.shape != (n,) or rows.dtype.kind not in "iu" or (n and not 0 <= rows.min() <= rows.max() < len(u)):
+        raise ValueError(f"simulate_batch: inputs must be {n} row indices into the {len(u)} rows of u, got {inputs!r}")
     signals = np.empty((n, nx, u.shape[1])) if out is None else out
     last = np.empty((n, nx))
     with single_threaded_blas():
@@ -334,11 +340,11 @@ def simulate_measured(
                 last_step.keep(model, sample_period, distinct, step)
         Phi, Gamma = np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma)
         u, du, x0, gain = np.ascontiguousarray(u), np.ascontiguousarray(du), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float)
-        h = float(sample_period)
+        h, drive = float(sample_period), np.ascontiguousarray(rows, dtype=np.intp)
 
         def simulate_rows(start: int, stop: int) -> None:
-            rows = slice(start, stop)
-            simulate_hermite(Phi, Gamma, index[rows], u[rows], du[rows], h, x0[rows], gain[rows], signals[rows], last[rows])
+            part = slice(start, stop)
+            simulate_hermite(Phi, Gamma, index[part], u, du, drive[part], h, x0[part], gain[part], signals[part], last[part])
 
         over_rows(simulate_rows, n)
     return signals, last

@@ -120,6 +120,7 @@ class Operation:
         self.reference = np.zeros((n_systems, nx))
         self.elapsed = np.zeros(n_systems)  # operation time (s): the load's clock
         self._last_step = LastDiscretization()  # a healthy batch's parameters repeat from step to step
+        self._inputs = np.tile(np.arange(n_systems), 2)  # the load row of each plant, then of each reference
 
     def start(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         """New episodes for the systems in ``mask``: at rest, a new load."""
@@ -143,11 +144,13 @@ class Operation:
         n = self.n
         # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
         theta = np.concatenate([parameters, self._nominal_rows])
-        loads, rates = self.model.source_inputs(np.concatenate([u, u]), np.concatenate([du, du]))
+        loads, rates = self.model.source_inputs(u, du)  # system i's, driving plant i and reference i
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
         gain = self.monitor.measurement_gain(theta)
         x0 = np.concatenate([self.plant, self.reference])
-        signals, last = simulate_measured(self.model.state_space, self.h, loads, rates, theta, x0, gain, last_step=self._last_step)
+        signals, last = simulate_measured(
+            self.model.state_space, self.h, loads, rates, theta, x0, gain, last_step=self._last_step, inputs=self._inputs,
+        )
         self.plant, self.reference = last[:n], last[n:]
         self.elapsed = self.elapsed + self.window
         return Window(measured=self.sensor_noise(signals[:n], rngs), expected=signals[n:], load=u, load_rate=du)
