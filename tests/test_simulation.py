@@ -8,7 +8,7 @@ from scipy.integrate import solve_ivp
 
 from ea_gym import models
 from ea_gym._kernels.propagation import SYSTEMS_BLOCK, simulate_hermite
-from ea_gym.bondgraph.simulation import Discretization, expm, hermite_coefficients, propagate
+from ea_gym.bondgraph.simulation import HOLD_ORDER, Discretization, discretize, expm, hermite_coefficients, propagate
 from ea_gym.loads import ConstantLoad, Sine, SinesLoad, multisine_rotations, rotated_multisine
 from ea_gym.plant import run_model
 
@@ -176,6 +176,22 @@ def test_expm_scales_and_squares_large_matrices():
     # batch shape is kept; one matrix is a batch of none
     assert expm(Z.reshape(3, 1, 2, 2)).shape == (3, 1, 2, 2)
     np.testing.assert_array_equal(expm(Z[0]), expm(Z)[0])
+
+
+def test_discretize_is_the_augmented_exponentials_top_row_to_the_bit():
+    # the compiled assembly equals building [[A, B, 0], input chain] h with numpy and taking expm's exponential
+    rng = np.random.default_rng(11)
+    for batch, nx, nu, h in (((), 2, 1, 0.01), ((5,), 3, 2, 0.1), ((2, 3), 4, 1, 1.0)):
+        A, B = rng.standard_normal(batch + (nx, nx)), rng.standard_normal(batch + (nx, nu))
+        size = nx + HOLD_ORDER * nu
+        Z = np.zeros(batch + (size, size))
+        Z[..., :nx, :nx], Z[..., :nx, nx : nx + nu] = A, B
+        for j in range(HOLD_ORDER - 1):  # each Taylor coefficient's derivative is the next one
+            Z[..., nx + j * nu : nx + (j + 1) * nu, nx + (j + 1) * nu : nx + (j + 2) * nu] = np.eye(nu)
+        E = expm(Z * h)
+        d = discretize(A, B, h)
+        np.testing.assert_array_equal(d.Phi, E[..., :nx, :nx])
+        np.testing.assert_array_equal(d.Gamma, E[..., :nx, nx:])
 
 
 def test_rotated_multisine_equals_the_direct_sum():

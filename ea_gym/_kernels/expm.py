@@ -113,3 +113,32 @@ def expm_batch(Z: np.ndarray, out: np.ndarray) -> None:
             matmul(W, W, T)
             W[:] = T
         out[k] = W
+
+
+@numba.njit(cache=True, nogil=True)
+def held_input_discretization(A: np.ndarray, B: np.ndarray, h: float, chain: np.ndarray, Phi: np.ndarray, Gamma: np.ndarray) -> None:
+    """Phi[k] and Gamma[k], the top block row of e^(Z h) with Z = [[A[k], B[k], 0], chain] for each of the
+    (M, nx, nx) and (M, nx, nu) matrices (``ea_gym.bondgraph.simulation.discretize``): Z h element by
+    element as numpy multiplies it, then ``expm_batch``'s exponential. Rows may be split over threads."""
+    rows, nx, nu = A.shape[0], A.shape[1], B.shape[2]
+    size = chain.shape[1]
+    Z = np.empty((rows, size, size))
+    E = np.empty((rows, size, size))
+    for k in range(rows):
+        for i in range(nx):
+            for j in range(nx):
+                Z[k, i, j] = A[k, i, j] * h
+            for j in range(nu):
+                Z[k, i, nx + j] = B[k, i, j] * h
+            for j in range(nx + nu, size):
+                Z[k, i, j] = 0.0 * h
+        for i in range(size - nx):
+            for j in range(size):
+                Z[k, nx + i, j] = chain[i, j] * h
+    expm_batch(Z, E)
+    for k in range(rows):
+        for i in range(nx):
+            for j in range(nx):
+                Phi[k, i, j] = E[k, i, j]
+            for j in range(size - nx):
+                Gamma[k, i, j] = E[k, i, nx + j]

@@ -11,13 +11,14 @@ Everything is batched over N systems: arrays carry a leading system axis.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cache
 
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from ea_gym._kernels.expm import expm_batch
+from ea_gym._kernels.expm import expm_batch, held_input_discretization
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
 from ea_gym.bondgraph.equations import StateSpaceModel
 from ea_gym.threads import over_rows, single_threaded_blas
@@ -49,21 +50,26 @@ def expm(Z: np.ndarray) -> np.ndarray:
 
 
 def discretize(A: np.ndarray, B: np.ndarray, h: float) -> Discretization:
-    """Exact discretization of dx/dt = A x + B u for a cubic input over one step of ``h`` seconds.
+    """Exact discretization of dx/dt = A x + B u for a cubic input over one step of ``h`` seconds (A (..., nx, nx)
+    and B (..., nx, nu) of the same leading shape).
 
     The augmented state [x, u, u', u'', u'''] has a nilpotent input chain, so the top block row of its
     matrix exponential holds Phi = e^{Ah} and Gamma_j = int_0^h e^{A(h-s)} B s^j / j! ds.
     """
     nx, nu = A.shape[-1], B.shape[-1]
-    batch = A.shape[:-2]
-    size = nx + HOLD_ORDER * nu
-    Z = np.empty(batch + (size, size))
-    Z[..., :nx, :nx] = A
-    Z[..., :nx, nx : nx + nu] = B
-    Z[..., :nx, nx + nu :] = 0.0
-    Z[..., nx:, :] = _input_chain(nx, nu)
-    E = expm(Z * h)
-    return Discretization(Phi=E[..., :nx, :nx], Gamma=E[..., :nx, nx:])
+    batch = A.shape[:-2]  # B's too
+    rows = math.prod(batch)
+    # the augmented matrix is built, scaled and exponentiated in one compiled pass, Phi and Gamma written contiguous
+    A = np.ascontiguousarray(A, dtype=float).reshape(rows, nx, nx)
+    B = np.ascontiguousarray(B, dtype=float).reshape(rows, nx, nu)
+    chain, h = _input_chain(nx, nu), float(h)
+    Phi, Gamma = np.empty((rows, nx, nx)), np.empty((rows, nx, HOLD_ORDER * nu))
+
+    def discretize_rows(start: int, stop: int) -> None:
+        held_input_discretization(A[start:stop], B[start:stop], h, chain, Phi[start:stop], Gamma[start:stop])
+
+    over_rows(discretize_rows, rows)
+    return Discretization(Phi=Phi.reshape(batch + (nx, nx)), Gamma=Gamma.reshape(batch + (nx, HOLD_ORDER * nu)))
 
 
 @cache
