@@ -137,6 +137,31 @@ def set_kernel_threads(threads: int) -> None:
     _pool.resize(threads)
 
 
+class _Parts:
+    """The parts of one ``over_rows`` call, taken in turn by whichever kernel thread asks next; done
+    when every part is, whether or not every thread it was offered to got to it (a busy worker that
+    finds none left returns at once, and nobody waits for it)."""
+
+    def __init__(self, call: Callable[[int, int], None], cuts: list[int]):
+        self.call = call
+        self.queue = iter(list(zip(cuts[:-1], cuts[1:])))  # a list iterator: each next() is atomic under the GIL
+        self.left = len(cuts) - 1
+        self.lock = threading.Lock()
+        self.done = threading.Event()
+        self.errors: list[BaseException] = []
+
+    def take(self) -> None:
+        for start, stop in self.queue:
+            try:
+                self.call(start, stop)
+            except BaseException as error:  # raised in the caller's thread, by ``over_rows``
+                self.errors.append(error)
+            with self.lock:
+                self.left -= 1
+                if self.left == 0:
+                    self.done.set()
+
+
 def over_rows(call: Callable[[int, int], None], rows: int) -> None:
     """``call(start, stop)`` over rows [0, rows) in contiguous parts of at least ``MIN_ROWS_PER_PART``,
     which the kernel threads (the caller's among them) take in turn until none is left. ``call`` must
@@ -147,16 +172,10 @@ def over_rows(call: Callable[[int, int], None], rows: int) -> None:
         call(0, rows)
         return
     parts = min(rows // MIN_ROWS_PER_PART, threads * PARTS_PER_THREAD)
-    cuts = [rows * part // parts for part in range(parts + 1)]
-    queue = iter(list(zip(cuts[:-1], cuts[1:])))  # a list iterator: each next() is atomic under the GIL
-
-    def take_parts() -> None:
-        for start, stop in queue:
-            call(start, stop)
-
-    pending = [_pool.submit(take_parts) for _ in range(threads - 1)]
-    try:
-        take_parts()
-    finally:
-        for future in pending:
-            future.result()
+    work = _Parts(call, [rows * part // parts for part in range(parts + 1)])
+    for _ in range(threads - 1):
+        _pool.submit(work.take)
+    work.take()
+    work.done.wait()
+    if work.errors:
+        raise work.errors[0]
