@@ -15,8 +15,10 @@ from ea_gym._kernels.smoothing import LANES, filter_lanes
 @numba.njit(cache=True)
 def copy(source: np.ndarray, start: int, target: np.ndarray, offset: int) -> None:
     """target[offset:] = source[start:] for as many samples as fit."""
-    for t in range(min(len(source) - start, len(target) - offset)):
-        target[offset + t] = source[start + t]
+    count = min(len(source) - start, len(target) - offset)
+    values, into = source[start : start + count], target[offset : offset + count]
+    for t in range(count):  # unsigned offsets: a signed index costs a negative-index check at every access
+        into[np.uint64(t)] = values[np.uint64(t)]
 
 
 @numba.njit(cache=True)
@@ -84,17 +86,21 @@ def smooth_rows(
                 k = i
         for g0 in range(0, len(members), LANES):
             lanes = min(LANES, len(members) - g0)
+            # the copies indexed by unsigned offsets: a signed index costs a negative-index check at every access
             for b in range(lanes):
+                signal, lane = rows[members[g0 + b], c, skip:], np.uint64(b)
                 for t in range(length):
-                    x[t, b] = rows[members[g0 + b], c, skip + t]
+                    x[np.uint64(t), lane] = signal[np.uint64(t)]
             filter_lanes(x, cut, moments, smoother, differentiator, k >= 0, filtered, derivative)
             for b in range(lanes):
-                m = members[g0 + b]
+                m, lane = members[g0 + b], np.uint64(b)
+                out = smooth[m, c]
                 for t in range(length - cut):
-                    smooth[m, c, t] = filtered[cut + t, b]
+                    out[np.uint64(t)] = filtered[np.uint64(cut + t), lane]
                 if k >= 0:
+                    out = slope[m, k]
                     for t in range(length - cut):
-                        slope[m, k, t] = derivative[cut + t, b]
+                        out[np.uint64(t)] = derivative[np.uint64(cut + t), lane]
     for m in range(M):
         if source[m] != m:
             for t in range(length - cut):
@@ -174,21 +180,25 @@ def sub_window_energies(
     the change of its kinetic energy, exact and free of the derivative's noise."""
     M, E, T = power.shape
     subs = (T - 1) // n_sub
-    finite = True
+    infinite = False
+    for value in power.reshape(-1):  # one flat loop: it vectorises
+        infinite |= not np.isfinite(value)
     ea = np.empty((M, E, subs))
     energy = np.empty((M, E, subs))
+    one = np.uint64(1)
     for m in range(M):
         for e in range(E):
             p = power[m, e]
-            for t in range(T):
-                finite &= np.isfinite(p[t])
             for s in range(subs):
-                # EA and signed energy in one pass over the samples (two passes cost a third more)
+                # EA and signed energy in one pass over the samples (two passes cost a third more); the
+                # sub-window indexed by unsigned offsets, free of the negative-index check at every load
+                window = p[s * n_sub : (s + 1) * n_sub + 1]
                 absolute = 0.0
                 signed = 0.0
-                for t in range(s * n_sub, (s + 1) * n_sub):
-                    absolute += trapezoid_area(p[t], p[t + 1], h)
-                    signed += 0.5 * (p[t] + p[t + 1]) * h
+                for j in range(n_sub):
+                    t = np.uint64(j)
+                    absolute += trapezoid_area(window[t], window[t + one], h)
+                    signed += 0.5 * (window[t] + window[t + one]) * h
                 ea[m, e, s] = absolute
                 energy[m, e, s] = signed
         for k in range(len(inertia)):
@@ -196,7 +206,7 @@ def sub_window_energies(
             f = smooth[m, channel]
             for s in range(subs):
                 energy[m, element, s] = half_inertance * (f[(s + 1) * n_sub] ** 2 - f[s * n_sub] ** 2)
-    return finite, ea, energy
+    return not infinite, ea, energy
 
 
 @numba.njit(cache=True)
@@ -278,8 +288,10 @@ def padded_chunk(
         for c in range(nx + 1):
             x = load[m] if c == nx else (measured[m, c] if real else reference[m, c])
             y, previous = padded[i, c], context[m if real else n + m, c]
+            mirror = x[1 : H + 1]  # x[H - j] at H - 1 - j
             for j in range(H):
-                y[j] = x[H - j] if np.isnan(previous[j]) else previous[j]
+                at = np.uint64(j)
+                y[at] = mirror[np.uint64(H - 1 - j)] if np.isnan(previous[at]) else previous[at]
             copy(x, 0, y, H)
             copy(x, T - H - 1, previous, 0)
 
