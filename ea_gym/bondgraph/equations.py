@@ -10,12 +10,10 @@ loops are solved exactly by the same linear solve.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ea_gym._kernels.equations import assemble_equations
 from ea_gym.bondgraph.causality import Causality, assign_causality
 from ea_gym.bondgraph.elements import CForm, Kind
 from ea_gym.bondgraph.graph import BondGraph, BondGraphError
@@ -91,13 +89,6 @@ class StateSpaceModel:
         self._M0 = equations.M0
         self._P = equations.P
         self._entries = tuple(equations.entries)
-        # the entries as the compiled assembly takes them: parameter, in M (else N), row, column, scale, reciprocal
-        entries = self._entries
-        self._entry_arrays = (
-            np.array([e.parameter for e in entries], dtype=np.intp), np.array([e.matrix == "M" for e in entries], dtype=bool),
-            np.array([e.row for e in entries], dtype=np.intp), np.array([e.col for e in entries], dtype=np.intp),
-            np.array([e.scale for e in entries], dtype=float), np.array([e.reciprocal for e in entries], dtype=bool),
-        )
         self._S = self._state_derivative_map()
 
     def _junction_equations(self, name: str, equations: _Equations) -> None:
@@ -186,12 +177,16 @@ class StateSpaceModel:
         batch = theta.shape[:-1]
         nx = len(self.state_names)
         M = np.empty(batch + self._M0.shape)
+        M[...] = self._M0
         rhs = np.empty(batch + (2 * self.n_bonds, nx + self._P.shape[1]))  # [N | P]
-        rows = math.prod(batch)
-        assemble_equations(
-            np.ascontiguousarray(theta).reshape(rows, -1), self._M0, self._P, *self._entry_arrays,
-            M.reshape((rows,) + self._M0.shape), rhs.reshape((rows,) + rhs.shape[-2:]),
-        )
+        N = rhs[..., :nx]
+        N[...] = 0.0
+        rhs[..., nx:] = self._P
+        for entry in self._entries:
+            value = theta[..., entry.parameter]
+            coefficient = entry.scale / value if entry.reciprocal else entry.scale * value
+            target = M if entry.matrix == "M" else N
+            target[..., entry.row, entry.col] += coefficient
         try:
             X = np.linalg.solve(M, rhs)
         except np.linalg.LinAlgError:
