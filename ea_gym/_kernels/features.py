@@ -38,8 +38,8 @@ def frame_sums(
     E, F = ea.shape[1], ea.shape[2]
     C = len(components)
     half = F // 2
-    # the sums read the frame in place (its rows are windows on the history's backing arrays: a copy
-    # would cost more than the strided reads); the residual is formed once
+    # the sums read the frame in place: each element's sub-windows are contiguous (a window on the history's
+    # backing array), which ascontiguousarray tells the compiled loops without a copy (they then vectorise)
     residual = np.empty(F)
     real_total, reference_total = np.empty(E), np.empty(E)
     ea_share, reference_share = np.empty(C), np.empty(C)
@@ -47,7 +47,7 @@ def frame_sums(
     for k in range(len(rows)):
         n = rows[k]
         for e in range(E):
-            real, reference = ea[n, e], ea_reference[n, e]
+            real, reference = np.ascontiguousarray(ea[n, e]), np.ascontiguousarray(ea_reference[n, e])
             for t in range(F):
                 residual[t] = real[t] - reference[t]
             real_total[e] = numpy_sum(real, 0, F, scratch)
