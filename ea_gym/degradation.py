@@ -191,7 +191,7 @@ class Wear:
         active, drawn = np.empty(n), np.empty(n, dtype=bool)
         # linear wear (or none) draws nothing: compiled; the random processes draw row by row
         steady_wear(out, self.faulty, self.arrival, self.velocity, np.asarray(clock, dtype=float), float(dt), self._linear, active, drawn)
-        for i in np.flatnonzero(drawn).tolist():
+        for i in drawn.nonzero()[0].tolist():
             rng = rngs[i]
             d = self.faulty[i]
             config, mean = self.configs[d], self.velocity[i] * active[i]

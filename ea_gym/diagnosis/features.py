@@ -138,7 +138,7 @@ def _peak_table(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: f
     out = np.empty((len(magnitude), 2 * N_PEAKS))
     tied = spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, out)
     # a flat top (equal neighbours) or equal peaks: scipy's plateau rule and its sort's order decide, row by row
-    for row in np.flatnonzero(tied):
+    for row in tied.nonzero()[0]:
         out[row] = _peaks_of(magnitude[row], frequencies, max_frequency, min_relative)
     return out
 

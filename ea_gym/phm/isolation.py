@@ -164,7 +164,7 @@ class Isolation:
         probabilities = np.zeros((self.n, len(self.classes)))
         probabilities[:, 0] = 1.0
         # isolation only matters once a fault is detected, and needs a full frame
-        counted = np.flatnonzero(self.counted(history, alarm))
+        counted = self.counted(history, alarm).nonzero()[0]  # flatnonzero's indices, without its wrappers
         if len(counted):
             # the frame of every system, read in place from the history, its sums those of the counted ones (the
             # others' are zero: their features are not read)
@@ -185,7 +185,7 @@ class Isolation:
     def balance_evidence(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
         """Log likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
         evidence = np.zeros((self.n, len(self.classes)))
-        rows = np.flatnonzero(alarm)
+        rows = alarm.nonzero()[0]
         if len(rows) == 0:
             return evidence
         span = self.evidence_steps
@@ -194,7 +194,7 @@ class Isolation:
         chi2 = balance_chi_square(gram, cross, square[:, 0], windows, self.balance_column)
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
         # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
-        evidence[rows] = -0.5 * (chi2 - chi2.min(1, keepdims=True)) / self.config.balance_inflation
+        evidence[rows] = -0.5 * (chi2 - np.minimum.reduce(chi2, axis=1, keepdims=True)) / self.config.balance_inflation
         return evidence
 
     def fuse(self, alarm: np.ndarray, log_evidence: np.ndarray, estimated: np.ndarray, balance: np.ndarray) -> Fusion:
@@ -216,4 +216,4 @@ class Isolation:
         )
         s.isolated[:] = isolated
         s.confident[:] = confident
-        return Fusion(belief=diagnosis, isolated=isolated, confidence=confidence, confident=confident, restarted=np.flatnonzero(restarted))
+        return Fusion(belief=diagnosis, isolated=isolated, confidence=confidence, confident=confident, restarted=restarted.nonzero()[0])

@@ -367,7 +367,7 @@ class TrackingEstimator:
             covariance=self.P[:, 1:, nx, nx + 1].copy(),
             log_evidence=self.log_likelihood.copy(),
             estimated=np.ones((self.n, len(self.degradable)), dtype=bool),
-            time=np.repeat(t[:, None], len(self.degradable), axis=1),
+            time=t[:, None].repeat(len(self.degradable), axis=1),
         )
 
     @property
