@@ -103,8 +103,7 @@ def smooth_rows(
                         out[np.uint64(t)] = derivative[np.uint64(cut + t), lane]
     for m in range(M):
         if source[m] != m:
-            for t in range(length - cut):
-                smooth[m, load, t] = smooth[source[m], load, t]
+            copy(smooth[source[m], load], 0, smooth[m, load], 0)
 
 
 @numba.njit(cache=True)
