@@ -3,7 +3,7 @@ chi-square (``np.linalg.pinv``, ``np.sum``) and the fusion of the evidence."""
 
 import numpy as np
 
-from ea_gym._kernels.isolation import history_sums, pseudo_inverse_factors
+from ea_gym._kernels.isolation import history_sums, network_average, pseudo_inverse_factors
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.models import spring_mass_damper
 from ea_gym.numerics import TINY
@@ -67,6 +67,24 @@ def test_history_sums_equal_numpys_sums_of_the_rows_windows():
     expected = gram[rows, ..., -10:].sum(-1), cross[rows, ..., -10:].sum(-1), other[rows].sum(-1)
     for got, want in zip(sums, expected):
         assert got.tobytes() == want.tobytes()
+
+
+def test_network_average_moves_the_counted_systems_as_numpy_does():
+    rng = np.random.default_rng(11)
+    average = rng.random((7, 4))
+    counted, predicted = np.array([6, 1, 2]), rng.random((3, 4))
+    expected_average = average.copy()
+    expected_average[counted] += 0.3 * (predicted - expected_average[counted])
+    expected = np.zeros((7, 4))
+    expected[:, 0] = 1.0  # "none" for the systems not counted
+    expected[counted] = predicted
+    assert network_average(predicted, counted, 7, 0.3, average).tobytes() == expected.tobytes()
+    assert average.tobytes() == expected_average.tobytes()
+    untouched = average.copy()
+    none = np.zeros((7, 4))
+    none[:, 0] = 1.0
+    assert network_average(np.empty((0, 4)), np.array([], dtype=np.int64), 7, 0.3, average).tobytes() == none.tobytes()
+    assert average.tobytes() == untouched.tobytes()
 
 
 def fuse_by_definition(average, previous, floor, weights, threshold, alarm, log_evidence, estimated, balance):

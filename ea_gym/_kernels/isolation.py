@@ -103,6 +103,22 @@ def chi_squares(
 
 
 @numba.njit(cache=True)
+def network_average(predicted: np.ndarray, counted: np.ndarray, n: int, weight: float, average: np.ndarray) -> np.ndarray:
+    """The newest frame's class probabilities of n systems, (n, K): the network's ``predicted`` (M, K) for the
+    ``counted`` systems (M,, distinct), "none" = 1 for the others. Moves each counted system's running
+    ``average`` (n, K) towards its prediction: average += weight (predicted - average), in numpy's order."""
+    K = average.shape[1]
+    probabilities = np.zeros((n, K))
+    probabilities[:, 0] = 1.0
+    for m in range(len(counted)):
+        row = counted[m]
+        for k in range(K):
+            probabilities[row, k] = predicted[m, k]
+            average[row, k] += weight * (predicted[m, k] - average[row, k])
+    return probabilities
+
+
+@numba.njit(cache=True)
 def belief_inputs(
     average: np.ndarray, log_evidence: np.ndarray, alarm: np.ndarray, estimator_weight: float, floor: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

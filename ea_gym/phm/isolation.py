@@ -19,7 +19,15 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ea_gym._kernels.isolation import belief_inputs, chi_squares, history_sums, pseudo_inverse_factors, shifted_log_belief, verdict
+from ea_gym._kernels.isolation import (
+    belief_inputs,
+    chi_squares,
+    history_sums,
+    network_average,
+    pseudo_inverse_factors,
+    shifted_log_belief,
+    verdict,
+)
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor
@@ -160,11 +168,9 @@ class Isolation:
 
     def classify(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
         """The newest frame's network class probabilities (N, K); updates their running average."""
-        s = self.state
-        probabilities = np.zeros((self.n, len(self.classes)))
-        probabilities[:, 0] = 1.0
         # isolation only matters once a fault is detected, and needs a full frame
         counted = self.counted(history, alarm).nonzero()[0]  # flatnonzero's indices, without its wrappers
+        predicted = np.empty((0, len(self.classes)))
         if len(counted):
             # the frame of every system, read in place from the history, its sums those of the counted ones (the
             # others' are zero: their features are not read)
@@ -175,12 +181,10 @@ class Isolation:
             gram[counted], cross[counted], noise[counted] = history_sums(history.gram, history.cross, noise_sums, counted, self.frame_steps)
             frame = self.monitor.frame_of(history.ea, history.ea_reference, gram, cross, noise.reshape(n, 2, states))
             features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth, counted)
-            probabilities[counted] = self.classifier.predict_proba(features)
+            predicted = self.classifier.predict_proba(features)
         # an exponential average over the frames since the alarm: later frames, with the fault grown,
         # outweigh the first ambiguous ones
-        weight = self.config.isolation_smoothing
-        s.probability_average[counted] += weight * (probabilities[counted] - s.probability_average[counted])
-        return probabilities
+        return network_average(predicted, counted, self.n, self.config.isolation_smoothing, self.state.probability_average)
 
     def balance_evidence(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
         """Log likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
