@@ -14,8 +14,9 @@ Two feature sets:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, partial
 
 import numpy as np
 
@@ -87,14 +88,24 @@ def residual_spectrogram(residual: np.ndarray, sub_window: float, frame: int, ho
 
 def _magnitude(segments: np.ndarray) -> np.ndarray:
     """|STFT| of segments (..., frame) already detrended and windowed (float64, Hann): scipy's scale, one-sided."""
-    # the pocketfft transform that scipy.fft.rfft(segments, axis=-1) calls on float64 input (no norm, one
-    # worker): the same bits without its backend dispatch and checks (~7 us of ~8 on one short segment)
-    from scipy.fft._pocketfft.pypocketfft import r2c
-
     frame = segments.shape[-1]
-    spectrum = r2c(segments, (-1,), True, 0, None, 1)
+    spectrum = _real_fft()(segments)
     spectrum *= _stft_scale(frame)
     return np.abs(spectrum)
+
+
+@cache
+def _real_fft() -> Callable[[np.ndarray], np.ndarray]:
+    """``scipy.fft.rfft(segments, axis=-1)`` of float64 segments: the pocketfft transform it calls (no norm,
+    one worker), the same bits without its backend dispatch and checks (~7 us of ~8 on one short segment);
+    where a scipy keeps it elsewhere, ``rfft`` itself."""
+    try:
+        from scipy.fft._pocketfft.pypocketfft import r2c
+    except ImportError:
+        from scipy import fft
+
+        return partial(fft.rfft, axis=-1)
+    return lambda segments: r2c(segments, (-1,), True, 0, None, 1)
 
 
 @cache
