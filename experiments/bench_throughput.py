@@ -24,8 +24,11 @@ sees the calling thread only) summarised by stage.
 Speed-ups between two commits are best stated with ``experiments/bench_against.py`` (alternating
 fresh processes).
 
+``--repeats K`` measures every row K times (a fresh env each time) and shows the median run with the range:
+on two threads the figures of this VM vary by +-15 % from run to run, on one by a few per cent.
+
 Run: ``python experiments/bench_throughput.py [--sizes 1 16 256 1024] [--regimes healthy alarm ppo]
-[--profile] [--json PATH]``; the defaults take a few minutes on an unloaded 2-core machine.
+[--repeats K] [--profile] [--json PATH]``; the defaults take a few minutes on an unloaded 2-core machine.
 """
 
 from __future__ import annotations
@@ -180,6 +183,13 @@ def measured(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int,
     }
 
 
+def median_run(runs: list[dict]) -> dict:
+    """The run of median env-steps/s among ``runs`` (the upper one of an even count), with every run's
+    env-steps/s under "runs"."""
+    rates = [run["env_steps_per_s"] for run in runs]
+    return runs[int(np.argsort(rates)[len(rates) // 2])] | {"runs": rates}
+
+
 #: where a step's time goes: the first stage whose marker is in a function's file path takes its own time
 STAGES = (
     ("tracking filters", ("_kernels/tracking", "phm/tracking")),
@@ -217,7 +227,7 @@ def run(args: argparse.Namespace) -> dict:
     }
     print(f"machine: {os.cpu_count()} cores, python {platform.python_version()}, load {os.getloadavg()[0]:.1f}")
     header = (f"{'regime':>8} {'N':>5} {'env':>8} {'threads':>7} {'steps/s':>9} {'per CPU-s':>10} {'CPU share':>9} {'alarm':>6} {'load':>5} "
-              f"{'vs sync':>8}")
+              f"{'vs sync':>8}" + ("  steps/s range" if args.repeats > 1 else ""))
     print(header)
     threads = kernel_threads()
     for regime in args.regimes:
@@ -233,11 +243,13 @@ def run(args: argparse.Namespace) -> dict:
             row = {}
             for key, kind, kind_threads in kinds:
                 steps = args.steps if kind != "sync" or n <= 16 else max(2, args.steps // 4)
-                row[key] = measure(kind, n, regime, steps, warmup, args.seed, actor, threads=kind_threads)
-                r = row[key]
+                row[key] = r = median_run([
+                    measure(kind, n, regime, steps, warmup, args.seed, actor, threads=kind_threads) for _ in range(args.repeats)
+                ])
                 ratio = f"{row['batched']['env_steps_per_s'] / r['env_steps_per_s']:.1f}x" if kind == "sync" else ""
+                spread = f" {min(r['runs']):>7.0f}-{max(r['runs']):<7.0f}" if args.repeats > 1 else ""
                 print(f"{regime:>8} {n:>5} {kind:>8} {kind_threads:>7} {r['env_steps_per_s']:>9.0f} {r['env_steps_per_cpu_s']:>10.0f} "
-                      f"{r['cpu_share']:>9.2f} {r['alarm_share']:>6.0%} {r['load_1min']:>5.1f} {ratio:>8}", flush=True)
+                      f"{r['cpu_share']:>9.2f} {r['alarm_share']:>6.0%} {r['load_1min']:>5.1f} {ratio:>8}{spread}", flush=True)
             rows[str(n)] = row
         results["regimes"][regime] = rows
         if args.profile:
@@ -261,12 +273,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--alarm-warmup", type=int, default=20, help="batch steps before timing in alarm (the alarms rise)")
     parser.add_argument("--sync-max", type=int, default=256, help="largest N for the SyncVectorEnv (it is slow)")
     parser.add_argument("--profile", action="store_true", help="also profile the batched env at N = 256 in each regime")
+    parser.add_argument("--repeats", type=int, default=1, help="measurements of each row, each in a fresh env: the median's row is shown")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers as JSON")
     args = parser.parse_args(argv)
-    for name in ("steps", "warmup", "alarm_warmup", "sync_max"):
-        if getattr(args, name) < (1 if name == "steps" else 0):
-            parser.error(f"--{name.replace('_', '-')} must be >= {1 if name == 'steps' else 0}, got {getattr(args, name)}")
+    for name in ("steps", "repeats", "warmup", "alarm_warmup", "sync_max"):
+        if getattr(args, name) < (1 if name in ("steps", "repeats") else 0):
+            parser.error(f"--{name.replace('_', '-')} must be >= {1 if name in ('steps', 'repeats') else 0}, got {getattr(args, name)}")
     if any(n < 1 for n in args.sizes):
         parser.error(f"--sizes must be >= 1, got {args.sizes}")
     results = run(args)
