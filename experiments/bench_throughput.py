@@ -62,7 +62,7 @@ from ea_gym.degradation import WearConfig  # noqa: E402
 from ea_gym.env import ENV_ID  # noqa: E402
 from ea_gym.files import write_json  # noqa: E402
 from ea_gym.models import get_model  # noqa: E402
-from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads, single_threaded_torch  # noqa: E402
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads, single_threaded_torch  # noqa: E402
 
 REGIMES = ("healthy", "alarm", "ppo")
 AGENT = ROOT / "agents" / "data" / "ppo_phm"
@@ -237,7 +237,7 @@ def run(args: argparse.Namespace) -> dict:
         for n in args.sizes:
             # (key, env, kernel threads): the batched env also on one thread where it would split its rows
             kinds = (
-                [("batched", "batched", threads)] + ([("batched_one_thread", "batched", 1)] if threads > 1 and n >= 2 * MIN_ROWS_PER_PART else [])
+                [("batched", "batched", threads)] + ([("batched_one_thread", "batched", 1)] if threads > 1 and n >= 2 * MIN_ROWS_PER_THREAD else [])
                 + ([("sync", "sync", 1)] if n <= args.sync_max else []) + ([("single", "single", 1)] if n == 1 else [])
             )
             row = {}

@@ -21,7 +21,7 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.env import ENV_ID
 from ea_gym.models import get_model
 from ea_gym.sensors import SystemNoise, add_sensor_noise
-from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
 
 MODELS = ("spring_mass_damper", "rlc_circuit", "dc_motor")
 
@@ -202,7 +202,7 @@ def test_batched_sensor_noise_draws_what_each_system_would():
 
 def test_sensor_noise_is_the_same_on_two_kernel_threads_and_from_a_shared_generator():
     """Rows split over the threads draw what each system would; systems sharing one generator draw from it in turn."""
-    n = 3 * MIN_ROWS_PER_PART
+    n = 2 * MIN_ROWS_PER_THREAD + 8
     clean = np.random.default_rng(8).standard_normal((n, 2, 101))
     noise = SystemNoise(0.05)
     previous = kernel_threads()

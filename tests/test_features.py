@@ -9,7 +9,7 @@ from ea_gym._kernels.features import spectrum_peaks
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, frame_features, residual_spectrogram, spectral_peaks
 from ea_gym.numerics import TINY
-from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
 
 
 def peaks_row_by_row(residual, sub_window, scale, max_frequency, min_relative=0.05):
@@ -116,7 +116,7 @@ def test_frame_features_equal_their_numpy_definition_to_the_bit(variant):
 
 
 def test_frame_features_are_the_same_on_one_kernel_thread_and_on_two():
-    frame = random_frame(np.random.default_rng(8), 5 * MIN_ROWS_PER_PART)
+    frame = random_frame(np.random.default_rng(8), 2 * MIN_ROWS_PER_THREAD + 8)
     rows = np.arange(len(frame.ea))[::-1]
     previous = kernel_threads()
     try:

@@ -10,7 +10,7 @@ from ea_gym.models import rlc_circuit, spring_mass_damper
 from ea_gym.phm.estimation import push_median
 from ea_gym.phm.history import MonitorHistory, push_window
 from ea_gym.phm.inversion import EAInversion
-from ea_gym.threads import kernel_threads, set_kernel_threads
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
 
 
 def _close(actual, expected):
@@ -80,11 +80,11 @@ def test_chunks_with_context_and_fresh_systems_match_numpy(make_model):
 
 
 def test_update_is_the_same_on_one_kernel_thread_and_on_two():
-    # 40 systems: one part in blocks of 32 and 8 on one thread, two parts of 20 on two; the loads
-    # repeat across the parts' boundary, and systems start over in the middle
+    # two threads' worth of systems and 8: one part in blocks of 32 on one thread, parts of 34 on two; the
+    # loads repeat (in fours) across the parts' boundaries, and systems start over in the middle
     model = spring_mass_damper()
     rng = np.random.default_rng(5)
-    n, nx, L = 40, len(model.state_names), 100
+    n, nx, L = 2 * MIN_ROWS_PER_THREAD + 8, len(model.state_names), 100
     monitors = {threads: Monitor(model, 0.01, n_systems=n) for threads in (1, 2)}
     previous = kernel_threads()
     try:

@@ -27,7 +27,7 @@ from ea_gym.diagnosis.training import (
     train_isolation,
 )
 from ea_gym.models import spring_mass_damper
-from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -206,7 +206,7 @@ def test_predict_proba_is_the_network_modules_forward_and_each_row_its_own(train
         previous = kernel_threads()
         try:
             set_kernel_threads(2)
-            assert len(features) >= 2 * MIN_ROWS_PER_PART  # enough rows to split
+            assert len(features) >= 2 * MIN_ROWS_PER_THREAD  # enough rows to split
             assert alone.tobytes() == batch.tobytes() == classifier.predict_proba(features).tobytes()
         finally:
             set_kernel_threads(previous)

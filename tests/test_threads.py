@@ -11,7 +11,15 @@ import numpy as np
 import pytest
 from threadpoolctl import threadpool_info
 
-from ea_gym.threads import MIN_ROWS_PER_PART, available_cores, kernel_threads, over_rows, set_kernel_threads, single_threaded_blas
+from ea_gym.threads import (
+    MIN_ROWS_PER_PART,
+    MIN_ROWS_PER_THREAD,
+    available_cores,
+    kernel_threads,
+    over_rows,
+    set_kernel_threads,
+    single_threaded_blas,
+)
 
 
 def blas_threads() -> list[int]:
@@ -29,7 +37,8 @@ def test_nested_single_threaded_blas_holds_one_thread_until_the_outermost_exits(
 
 
 def test_over_rows_covers_every_row_once_in_parts_on_the_kernel_threads() -> None:
-    seen = np.zeros(100, dtype=int)
+    rows = 4 * MIN_ROWS_PER_THREAD
+    seen = np.zeros(rows, dtype=int)
     names: set[str] = set()
     lock = threading.Lock()
 
@@ -42,21 +51,39 @@ def test_over_rows_covers_every_row_once_in_parts_on_the_kernel_threads() -> Non
     previous = kernel_threads()
     try:
         set_kernel_threads(2)
-        over_rows(part, 100)
-        assert seen.tolist() == [1] * 100
+        over_rows(part, rows)
+        assert seen.tolist() == [1] * rows
         assert threading.current_thread().name in names and any(name.startswith("ea-gym-kernel") for name in names)
         set_kernel_threads(1)
         names.clear()
-        over_rows(part, 100)
-        assert names == {threading.current_thread().name} and seen.tolist() == [2] * 100
+        over_rows(part, rows)
+        assert names == {threading.current_thread().name} and seen.tolist() == [2] * rows
     finally:
         set_kernel_threads(previous)
 
 
 def test_over_rows_runs_few_rows_on_the_caller_in_one_part() -> None:
     calls: list[tuple[int, int]] = []
-    over_rows(lambda start, stop: calls.append((start, stop)), MIN_ROWS_PER_PART + 1)
-    assert calls == [(0, MIN_ROWS_PER_PART + 1)]
+    previous = kernel_threads()
+    try:
+        set_kernel_threads(2)
+        over_rows(lambda start, stop: calls.append((start, stop)), 2 * MIN_ROWS_PER_THREAD - 1)  # fewer than two threads' worth
+    finally:
+        set_kernel_threads(previous)
+    assert calls == [(0, 2 * MIN_ROWS_PER_THREAD - 1)]
+
+
+def test_over_rows_parts_are_contiguous_and_no_smaller_than_the_least_part() -> None:
+    calls: list[tuple[int, int]] = []
+    previous = kernel_threads()
+    try:
+        set_kernel_threads(2)
+        over_rows(lambda start, stop: calls.append((start, stop)), 5 * MIN_ROWS_PER_PART)
+    finally:
+        set_kernel_threads(previous)
+    bounds = sorted(calls)
+    assert bounds[0][0] == 0 and bounds[-1][1] == 5 * MIN_ROWS_PER_PART and len(bounds) > 1
+    assert all(a[1] == b[0] for a, b in zip(bounds, bounds[1:])) and all(stop - start >= MIN_ROWS_PER_PART for start, stop in bounds)
 
 
 def test_over_rows_raises_a_parts_exception() -> None:
@@ -68,7 +95,7 @@ def test_over_rows_raises_a_parts_exception() -> None:
     try:
         set_kernel_threads(2)
         with pytest.raises(ZeroDivisionError, match="rows"):
-            over_rows(part, 64)
+            over_rows(part, 2 * MIN_ROWS_PER_THREAD)
     finally:
         set_kernel_threads(previous)
 

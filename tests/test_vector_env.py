@@ -17,7 +17,7 @@ from ea_gym.diagnosis.classifier import FaultClassifier, TrainingConfig
 from ea_gym.env import ENV_ID
 from ea_gym.env.sb3 import MaintenanceVecEnv
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
-from ea_gym.threads import MIN_ROWS_PER_PART, kernel_threads, set_kernel_threads
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
 
 # faults from the first seconds, fast: failures (terminations) within ~10 steps, and truncations at the
 # 12-step horizon for the episodes whose fault comes late or whose part is replaced in time
@@ -319,7 +319,7 @@ def test_native_env_equals_single_envs_with_every_system_in_alarm():
 def test_native_env_is_the_same_on_one_kernel_thread_and_on_two():
     # enough systems in alarm that every stage's rows split over the threads (``over_rows``); random
     # maintenance and failures restart some of them on the way
-    n = 3 * MIN_ROWS_PER_PART
+    n = 2 * MIN_ROWS_PER_THREAD
     wear = {name: WearConfig(arrival=(0.0, 1.0)) for name in FAST_WEAR}
     envs = {threads: _vector(n, obs_mode="phm", continue_after_failure=True, wear=wear) for threads in (1, 2)}
     rng = np.random.default_rng(5)
