@@ -16,7 +16,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable, Iterator
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from functools import cache
 
@@ -103,11 +103,12 @@ class _KernelPool:
         self.lock = threading.Lock()
         self.worker = threading.local()  # set in the workers: a kernel they run splits no further
 
-    def submit(self, call: Callable[[], None]) -> Future[None]:
+    def submit(self, call: Callable[[], None]) -> None:
+        """Offer ``call`` to the workers (its outcome is the caller's to collect: ``_Parts`` keeps it)."""
         with self.lock:
             if self.executor is None:
                 self.executor = ThreadPoolExecutor(self.threads - 1, "ea-gym-kernel", initializer=self.mark_worker)
-            return self.executor.submit(call)
+            self.executor.submit(call)
 
     def mark_worker(self) -> None:
         self.worker.active = True
@@ -169,9 +170,9 @@ class _Parts:
 def over_rows(call: Callable[[int, int], None], rows: int) -> None:
     """``call(start, stop)`` over rows [0, rows) in contiguous parts of at least ``MIN_ROWS_PER_PART``
     (one part where the threads would get fewer than ``MIN_ROWS_PER_THREAD`` each), which the kernel
-    threads (the caller's among them) take in turn until none is left. ``call`` must
-    write only its own rows and release the GIL for its work (a ``nogil`` kernel). Returns when every
-    part is done; a part's exception is raised here."""
+    threads (the caller's among them) take in turn until none is left. ``call`` must write only its own
+    rows and release the GIL for its work (a ``nogil`` kernel). Returns when every part is done; a
+    part's exception is raised here."""
     threads = min(_pool.threads, rows // MIN_ROWS_PER_THREAD)
     if threads <= 1 or getattr(_pool.worker, "active", False):
         call(0, rows)

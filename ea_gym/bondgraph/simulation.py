@@ -240,12 +240,6 @@ def unique_rows(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     n = len(theta)
     if n <= 1:
         return theta, np.zeros(n, dtype=np.intp)
-    if n == 2:  # a single environment's plant and reference: np.unique's order of two rows by their bytes
-        first, second = theta[0].tobytes(), theta[1].tobytes()
-        if first == second:
-            return theta[:1].copy(), np.zeros(2, dtype=np.intp)
-        pair = np.array([0, 1] if first < second else [1, 0], dtype=np.intp)
-        return theta[pair], pair
     if n <= FEW_ROWS:  # np.unique's order (its void rows compare as their bytes do), without its sort's overhead
         rows = [row.tobytes() for row in theta]
         order = sorted(set(rows))
