@@ -17,7 +17,7 @@ import os
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager
 from functools import cache
 
 import scipy.linalg  # noqa: F401 - loads scipy's BLAS so that the controller sees it
@@ -30,32 +30,41 @@ def _blas_controllers() -> tuple[LibController, ...]:
     return tuple(ThreadpoolController().select(user_api="blas").lib_controllers)
 
 
-#: how deep each thread is in ``single_threaded_blas`` contexts
-_blas_depth = threading.local()
+class _OneBlasThread:
+    """The context of ``single_threaded_blas``: its outermost entry on a thread sets each BLAS library that
+    runs on more than one thread to one (read afresh at every entry: the user may have changed it), and its
+    exit gives those back their count. A class rather than a generator: entered at every environment step."""
 
+    def __init__(self) -> None:
+        self.local = threading.local()  # per thread: how deep in the contexts, and what the outermost changed
 
-@contextmanager
-def single_threaded_blas() -> Iterator[None]:
-    """A context in which numpy's and scipy's BLAS use one thread (a few us to enter: each library's
-    count is set directly, as ``threadpoolctl``'s limit sets it, without its bookkeeping; nothing to
-    enter within another, as the simulation's within an environment step)."""
-    depth = getattr(_blas_depth, "value", 0)
-    _blas_depth.value = depth + 1
-    try:
-        if depth:
-            yield
-        else:
-            libraries = _blas_controllers()
-            previous = [library.num_threads for library in libraries]
-            for library in libraries:
+    def __enter__(self) -> None:
+        local = self.local
+        depth = getattr(local, "depth", 0)
+        if depth == 0:
+            changed = [(library, threads) for library in _blas_controllers() if (threads := library.num_threads) != 1]
+            for library, _ in changed:
                 library.set_num_threads(1)
-            try:
-                yield
-            finally:
-                for library, threads in zip(libraries, previous):
-                    library.set_num_threads(threads)
-    finally:
-        _blas_depth.value = depth
+            local.changed = changed
+        local.depth = depth + 1
+
+    def __exit__(self, *exc_info: object) -> None:
+        local = self.local
+        local.depth -= 1
+        if local.depth == 0:
+            for library, threads in local.changed:
+                library.set_num_threads(threads)
+
+
+_one_blas_thread = _OneBlasThread()
+
+
+def single_threaded_blas() -> AbstractContextManager[None]:
+    """A context in which numpy's and scipy's BLAS use one thread (about 3 us to enter and leave: each
+    library's count is set directly, as ``threadpoolctl``'s limit sets it, without its bookkeeping, and
+    only where it is not one already; nothing to do within another, as the simulation's within an
+    environment step)."""
+    return _one_blas_thread
 
 
 @contextmanager

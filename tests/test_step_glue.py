@@ -1,7 +1,10 @@
-"""The step's shared arrays (idle outputs built once, observations merged in place of copies) stay private."""
+"""The step's shared arrays (idle outputs built once, observations merged in place of copies) stay private;
+its compiled bookkeeping is its numpy form."""
 
 import numpy as np
+import pytest
 
+from ea_gym._kernels.ledger import close_step, outside_limits
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
 
 
@@ -28,3 +31,44 @@ def test_observations_are_fresh_arrays_and_idle_outputs_stay_unchanged():
             np.testing.assert_array_equal(observation[key], snapshot[key])
     for key, value in core.observer.idle.items():
         np.testing.assert_array_equal(value, idle[key])
+
+
+def test_failure_check_is_its_numpy_form():
+    rng = np.random.default_rng(1)
+    n, columns = 40, np.array([3, 0, 2])
+    low, high = np.array([0.2, -1.0, 0.5]), np.array([0.8, 1.0, 2.5])
+    theta = rng.uniform(-2.0, 3.0, (n, 4))
+    theta[::7, 0] = np.nan  # NaN is inside the limits, as numpy's comparisons say
+    theta[1, 3], theta[2, 3] = low[0], high[0]  # on a limit is inside
+    for running in (rng.random(n) < 0.7, np.ones(n, dtype=bool), np.zeros(n, dtype=bool)):
+        values = theta[:, columns]
+        expected = running & ((values < low) | (values > high)).any(axis=1)
+        failed = np.empty(n, dtype=bool)
+        assert outside_limits(theta, columns, low, high, running, failed) == expected.any()
+        np.testing.assert_array_equal(failed, expected)
+
+
+@pytest.mark.parametrize("n", [1, 9])
+@pytest.mark.parametrize("stop_at_failure", [True, False])
+def test_step_close_is_its_numpy_form_to_the_bit(n, stop_at_failure):
+    rng = np.random.default_rng(n)
+    for _ in range(20):
+        costs = rng.uniform(0.0, 1e3, (5, n)) * (rng.random((5, n)) < 0.5)  # the items, the total's row last
+        costs[3] = 0.0  # lost production: counted by the close alone
+        down, steps = rng.integers(0, 4, n), rng.integers(0, 12, n)
+        since = rng.uniform(0.0, 50.0, n)
+        maintained, failed = rng.random(n) < 0.3, rng.random(n) < 0.3
+        expected = costs.copy()
+        expected[3] += np.where(down > 0, 7.3, 0.0)
+        expected[4] = expected[:4].sum(axis=0)
+        expected_down = np.maximum(down - 1, 0)
+        expected_since = np.where(maintained | failed, 0.0, since + 0.7)
+        expected_steps = steps + 1
+        expected_terminated = failed & stop_at_failure
+        expected_truncated = (expected_steps >= 10) & ~expected_terminated
+        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        close_step(costs, 3, 7.3, down, since, steps, maintained, failed, 0.7, 10, stop_at_failure, terminated, truncated)
+        for got, want in [(costs, expected), (down, expected_down), (since, expected_since), (steps, expected_steps),
+                          (terminated, expected_terminated), (truncated, expected_truncated)]:
+            np.testing.assert_array_equal(got, want)
+            assert got.dtype == want.dtype

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ea_gym._kernels.ledger import close_step, outside_limits
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
@@ -158,9 +159,9 @@ class MaintenanceCore:
         n_actions = len(self.actions)
         if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or actions.min() < 0 or actions.max() >= n_actions:
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
-        c, dt = self.config.costs, self.config.step_seconds
-        items = np.zeros((len(COST_ITEMS) - 1, self.n))  # one row per cost item but the total
-        costs = dict(zip(COST_ITEMS[:-1], items))
+        dt = self.config.step_seconds
+        items = np.zeros((len(COST_ITEMS), self.n))  # one row per cost item, the total last
+        costs = dict(zip(COST_ITEMS, items))
         events: list[list[Event]] = [[] for _ in range(self.n)]
         actions = np.where(self._down > 0, 0, actions)  # a machine under replacement takes no orders
         maintained = self._maintain(actions, rngs, costs, events)
@@ -171,23 +172,24 @@ class MaintenanceCore:
 
         outputs = self.operate(rngs)
         failed = self._failures(running, rngs, costs, events)
-        costs["lost_production"] += np.where(self._down > 0, c.lost_production, 0.0)
-        self._down = np.maximum(self._down - 1, 0)
-        self._since_maintenance = np.where(maintained | failed, 0.0, self._since_maintenance + dt)
-        self._steps = self._steps + 1
-
-        terminated = failed & (not self.config.continue_after_failure)
-        truncated = (self._steps >= self.config.horizon) & ~terminated
-        total = items.sum(axis=0)  # from 0, item after item
-        costs["total"] = total
+        terminated, truncated = np.empty(self.n, dtype=bool), np.empty(self.n, dtype=bool)
+        # lost production, downtime, time since maintenance, step count, episode ends and the total cost, in place
+        close_step(
+            items, COST_ITEMS.index("lost_production"), self.config.costs.lost_production, self._down, self._since_maintenance,
+            self._steps, maintained, failed, dt, self.config.horizon, not self.config.continue_after_failure, terminated, truncated,
+        )
         observation = self.observe(outputs)
         info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events)
-        return StepResult(observation=observation, reward=-total, terminated=terminated, truncated=truncated, info=info)
+        return StepResult(observation=observation, reward=-costs["total"], terminated=terminated, truncated=truncated, info=info)
 
     def _maintain(
         self, actions: np.ndarray, rngs: Sequence[np.random.Generator], costs: dict[str, np.ndarray], events: list[list[Event]]
     ) -> np.ndarray:
         """Apply the corrective actions and replacements ``actions`` (N,); returns the systems maintained (N,) bool."""
+        maintained = actions > 0
+        if not maintained.any():  # carry on everywhere: the common step
+            self._corrective_direction.fill(0.0)
+            return maintained
         k = len(self.components)
         corrective = (actions >= 1) & (actions <= k)
         replace = actions > k
@@ -212,17 +214,17 @@ class MaintenanceCore:
             replaced = np.flatnonzero(replace)
             self._replace(replaced, actions[replaced] - 1 - k, self.config.costs.replace_downtime, rngs, events)
             costs["replacement"][replaced] += self.config.costs.replacement
-        return corrective | replace
+        return maintained
 
     def _failures(
         self, running: np.ndarray, rngs: Sequence[np.random.Generator], costs: dict[str, np.ndarray], events: list[list[Event]]
     ) -> np.ndarray:
         """The running machines with a parameter outside its safe limits (N,) bool, their costs and events."""
         low, high = self._low, self._high
-        values = self._theta[:, self._component_index]
-        failed = running & ((values < low) | (values > high)).any(axis=1)
-        if not failed.any():
+        failed = np.empty(self.n, dtype=bool)
+        if not outside_limits(self._theta, self._component_index, low, high, running, failed):
             return failed
+        values = self._theta[:, self._component_index]
         broken = np.flatnonzero(failed)
         costs["failure"][broken] += self.config.costs.failure
         culprits = np.argmax(np.maximum(low - values[broken], values[broken] - high), axis=1)
