@@ -159,12 +159,17 @@ class Wear:
         limits: their (lower, upper) safe limits, (D, 2).
         configs: one WearConfig per wearing component.
         n_systems: N.
+        columns: where the wearing components sit in the rows of values that ``advance`` and ``true_rul`` are
+            given (a system's whole parameter vector, say), (D,); None: columns 0..D-1.
     """
 
-    def __init__(self, nominal: np.ndarray, limits: np.ndarray, configs: list[WearConfig], n_systems: int):
+    def __init__(
+        self, nominal: np.ndarray, limits: np.ndarray, configs: list[WearConfig], n_systems: int, columns: np.ndarray | None = None
+    ):
         self.nominal = np.asarray(nominal, dtype=float)
         self.limits = np.asarray(limits, dtype=float)
         self.configs = list(configs)
+        self.columns = np.arange(len(self.nominal)) if columns is None else np.asarray(columns, dtype=np.intp)
         self._linear = np.array([config.process == "linear" for config in self.configs], dtype=bool)
         self.faulty = np.zeros(n_systems, dtype=int)
         self.arrival = np.full(n_systems, np.inf)
@@ -182,15 +187,20 @@ class Wear:
             self.arrival[i] = clock[i] + rng.uniform(*config.arrival)
             self.velocity[i] = rng.uniform(*config.rate) * (limit - self.nominal[d])
 
-    def advance(self, values: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> np.ndarray:
-        """Wear the faulty components over [clock, clock + dt]; ``values`` (N, D) in parameter units."""
+    def advance(
+        self, values: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator], running: np.ndarray | None = None
+    ) -> None:
+        """Wear the faulty components over [clock, clock + dt], in place: ``values`` (N, ...) in parameter units,
+        component d in column ``columns[d]``. Only the ``running`` systems (N,) bool (None: all) wear; the
+        others draw their random increments all the same, so that their generators stay in step."""
         from ea_gym._kernels.wear import steady_wear  # compiled: numba is imported when the first system wears
 
-        out = np.array(values, dtype=float)
-        n = len(out)
+        n = len(values)
+        running = np.ones(n, dtype=bool) if running is None else running
         active, drawn = np.empty(n), np.empty(n, dtype=bool)
         # linear wear (or none) draws nothing: compiled; the random processes draw row by row
-        steady_wear(out, self.faulty, self.arrival, self.velocity, np.asarray(clock, dtype=float), float(dt), self._linear, active, drawn)
+        clock = np.asarray(clock, dtype=float)
+        steady_wear(values, self.columns, running, self.faulty, self.arrival, self.velocity, clock, float(dt), self._linear, active, drawn)
         for i in drawn.nonzero()[0].tolist():
             rng = rngs[i]
             d = self.faulty[i]
@@ -203,13 +213,14 @@ class Wear:
             else:
                 sigma = config.volatility * abs(self.velocity[i]) * 10.0 / math.sqrt(10.0)
                 increment = mean + sigma * math.sqrt(active[i]) * rng.standard_normal()
-            out[i, d] += increment
-        return out
+            if running[i]:
+                values[i, self.columns[d]] += increment
 
     def true_rul(self, values: np.ndarray, clock: np.ndarray) -> np.ndarray:
-        """Time (s) until the faulty component's mean trend reaches its limit; inf before the fault arrives."""
+        """Time (s) until the faulty component's mean trend reaches its limit; inf before the fault arrives.
+        ``values`` (N, ...) as for ``advance``."""
         from ea_gym._kernels.wear import mean_trend_rul
 
         rul = np.empty(len(values))
-        mean_trend_rul(np.asarray(values, dtype=float), self.faulty, self.limits, self.velocity, self.arrival, np.asarray(clock, dtype=float), rul)
+        mean_trend_rul(values, self.columns, self.faulty, self.limits, self.velocity, self.arrival, np.asarray(clock, dtype=float), rul)
         return rul

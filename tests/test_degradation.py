@@ -64,7 +64,8 @@ def test_the_wears_random_walk_std_is_that_of_its_increments(process):
     rngs = [np.random.default_rng(i) for i in range(n)]
     wear.start(rngs, np.zeros(n), np.ones(n, dtype=bool))
     values = np.full((n, 1), 0.5)
-    increments = wear.advance(values, np.zeros(n), 1.0, rngs)[:, 0] - 0.5
+    wear.advance(values, np.zeros(n), 1.0, rngs)
+    increments = values[:, 0] - 0.5
     expected = config.random_walk_std(0.5, (0.4, 0.6))
     assert expected == pytest.approx(0.3 * math.sqrt(10.0) * 0.01 * 0.1)
     assert increments.mean() == pytest.approx(0.001, rel=0.05)
@@ -78,3 +79,25 @@ def test_linear_wear_has_no_random_walk_and_a_random_direction_averages_both_lim
     both = WearConfig(process="wiener", rate=(0.01, 0.02), volatility=0.3).random_walk_std(100.0, (85.0, 105.0))
     # mean square drift: E[r^2] for r uniform on (0.01, 0.02), times the mean of 15^2 and 5^2
     assert both == pytest.approx(0.3 * math.sqrt(10.0 * (0.01**2 + 0.01 * 0.02 + 0.02**2) / 3.0 * (15.0**2 + 5.0**2) / 2.0))
+
+
+def test_stopped_systems_keep_their_values_and_draw_as_running_ones():
+    """Wear.advance of a running mask: the values of all systems worn, then the stopped ones' put back; every
+    generator drawn from as if all ran (linear, gamma and Wiener wear, components in a wider parameter row)."""
+    from ea_gym.degradation import Wear, WearConfig
+
+    configs = [WearConfig(process=p, rate=(0.01, 0.02), arrival=(0.0, 2.0)) for p in ("linear", "gamma", "wiener")]
+    nominal, limits, columns = np.array([1.0, 2.0, 3.0]), np.array([[0.5, 1.5], [1.0, 3.0], [2.0, 4.0]]), np.array([3, 0, 1])
+    n = 40
+    worn, wearing = (Wear(nominal, limits, configs, n, columns=columns) for _ in range(2))
+    rngs, again = ([np.random.default_rng(50 + i) for i in range(n)] for _ in range(2))
+    for wear, generators in ((worn, rngs), (wearing, again)):
+        wear.start(generators, np.zeros(n), np.ones(n, dtype=bool))
+    parameters = np.random.default_rng(7).uniform(1.0, 3.0, (n, 4))
+    running = np.arange(n) % 3 != 0
+    original, every = parameters.copy(), parameters.copy()
+    wearing.advance(every, np.full(n, 1.0), 1.0, again)
+    worn.advance(parameters, np.full(n, 1.0), 1.0, rngs, running)
+    np.testing.assert_array_equal(parameters, np.where(running[:, None], every, original))
+    assert (every[~running] != original[~running]).any() and (parameters[running] != original[running]).any()
+    assert all(a.random() == b.random() for a, b in zip(rngs, again))

@@ -394,15 +394,21 @@ def test_steady_wear_equals_the_numpy_step_to_the_bit():
     values, faulty, clock, arrival, velocity, _ = _wear_case(12)
     linear = np.array([True, False, True])
     dt = 1.0
+    running = np.arange(len(values)) % 5 != 2
+    columns = np.array([3, 0, 2])  # the components' columns in wider rows (a parameter vector), column 1 not wearing
     active = np.clip(clock + dt - np.maximum(arrival, clock), 0.0, dt)
     worn = np.flatnonzero(active > 0)
     means = velocity[worn] * active[worn]
     random = ~linear[faulty[worn]] & (means != 0)
-    expected = values.copy()
+    wearing = values.copy()
     steady = worn[~random]
-    expected[steady, faulty[steady]] += means[~random]
-    out, seconds, drawn = values.copy(), np.empty(len(values)), np.empty(len(values), dtype=bool)
-    steady_wear(out, faulty, arrival, velocity, clock, dt, linear, seconds, drawn)
+    wearing[steady, faulty[steady]] += means[~random]
+    rows = np.full((len(values), 4), 7.0)
+    rows[:, columns] = values
+    expected = rows.copy()
+    expected[:, columns] = np.where(running[:, None], wearing, values)
+    out, seconds, drawn = rows.copy(), np.empty(len(values)), np.empty(len(values), dtype=bool)
+    steady_wear(out, columns, running, faulty, arrival, velocity, clock, dt, linear, seconds, drawn)
     np.testing.assert_array_equal(out, expected)
     np.testing.assert_array_equal(seconds, active)
     np.testing.assert_array_equal(np.flatnonzero(drawn), worn[random])
@@ -418,7 +424,12 @@ def test_mean_trend_rul_equals_the_numpy_formula_to_the_bit():
         rul = np.where(velocity != 0, (limit - current) / velocity, np.inf)
     expected = np.where(clock >= arrival, np.maximum(rul, 0.0), np.inf)
     out = np.empty(len(values))
-    mean_trend_rul(values, faulty, limits, velocity, arrival, clock, out)
+    mean_trend_rul(values, np.arange(3), faulty, limits, velocity, arrival, clock, out)
+    np.testing.assert_array_equal(out, expected)
+    columns = np.array([2, 0, 3])  # the values in wider rows
+    rows = np.zeros((len(values), 4))
+    rows[:, columns] = values
+    mean_trend_rul(rows, columns, faulty, limits, velocity, arrival, clock, out)
     np.testing.assert_array_equal(out, expected)
     assert np.isinf(out).any() and (out == 0).any() and np.isfinite(out).any()
 

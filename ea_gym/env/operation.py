@@ -175,7 +175,7 @@ class Degradation:
         self.parameter_index = np.array([model.parameter_names.index(c) for c in wearing])  # into the parameter vector
         nominal = model.parameter_vector()
         limits = np.array([model.safe_limits[c] for c in wearing])
-        self.wear = Wear(nominal[self.parameter_index], limits, [wear[c] for c in wearing], n_systems)
+        self.wear = Wear(nominal[self.parameter_index], limits, [wear[c] for c in wearing], n_systems, columns=self.parameter_index)
         self._maintainable_index = np.array([components.index(c) for c in wearing])
 
     def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray) -> None:
@@ -184,13 +184,11 @@ class Degradation:
 
     def advance(self, parameters: np.ndarray, running: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> None:
         """Wear the ``running`` machines' parameters (N, P, in place) over ``dt`` seconds from ``clock``."""
-        wearing = parameters[:, self.parameter_index]
-        worn = self.wear.advance(wearing, clock, dt, rngs)
-        parameters[:, self.parameter_index] = np.where(running[:, None], worn, wearing)
+        self.wear.advance(parameters, clock, dt, rngs, running)
 
     def true_rul(self, parameters: np.ndarray, clock: np.ndarray) -> np.ndarray:
         """Each system's true remaining useful life (s), (N,)."""
-        return self.wear.true_rul(parameters[:, self.parameter_index], clock)
+        return self.wear.true_rul(parameters, clock)
 
     def faulty_component(self, i: int) -> str:
         """The component system i's fault is (or will be) in."""
