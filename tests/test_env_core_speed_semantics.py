@@ -8,7 +8,7 @@ import ea_gym  # noqa: F401 - registers the environments
 from ea_gym._kernels.propagation import simulate_hermite
 from ea_gym.bondgraph.simulation import (
     Discretization,
-    LastDiscretization,
+    MeasuredSimulation,
     discretize,
     hermite_coefficients,
     propagate,
@@ -101,26 +101,56 @@ def test_measured_simulation_is_the_states_times_the_gains_in_the_sensors_layout
         simulate_measured(space, 0.01, u[:2], du[:2], theta, x0, gain, inputs=np.array([0, 1, 2, 0, 1]))
 
 
-def test_the_last_discretization_is_reused_for_the_same_rows_only():
+def test_a_measured_simulation_keeps_the_discretizations_of_the_rows_that_stay(monkeypatch):
+    """Window after window, with rows changing in place, MeasuredSimulation gives simulate_measured's bits and
+    discretizes only the distinct rows that changed."""
     model = get_model("spring_mass_damper")
     space = model.state_space
     rng = np.random.default_rng(5)
     n, samples = 4, 30
-    nominal = np.repeat(model.parameter_vector()[None], n, axis=0)
+    inputs = np.tile(np.arange(n), 2)  # plants and references, as an environment's batch
+    nominal = np.repeat(model.parameter_vector()[None], 2 * n, axis=0)
     worn = nominal.copy()
     worn[1, 1] *= 1.01
+    more = worn.copy()
+    more[0, 0] *= 0.99
+    more[2, 0] *= 0.98
+    signed = more.copy()
+    signed[3, 2] = -0.0  # a row differs from its predecessor in a zero's sign only
+    more[3, 2] = 0.0
     u, du = rng.standard_normal((2, n, samples, 1))
-    x0 = rng.standard_normal((n, space.n_states))
-    gain = rng.uniform(0.5, 2.0, (n, space.n_states))
-    last_step = LastDiscretization()
-    for theta in (nominal, nominal.copy(), worn, worn.copy(), nominal):
-        expected = simulate_measured(space, 0.01, u, du, theta, x0, gain)
-        kept = last_step.of(space, 0.01, unique_rows(theta)[0])
-        got = simulate_measured(space, 0.01, u, du, theta, x0, gain, last_step=last_step)
+    x0 = rng.standard_normal((2 * n, space.n_states))
+    gain = rng.uniform(0.5, 2.0, (2 * n, space.n_states))
+    simulation = MeasuredSimulation(space, 0.01, inputs, n)
+    computed: list[int] = []
+    matrices = space.matrices
+    monkeypatch.setattr(space, "matrices", lambda theta: computed.append(len(theta)) or matrices(theta))
+    for theta, rows in ((nominal, 1), (nominal.copy(), 0), (worn, 1), (more, 3), (signed, 1), (signed.copy(), 0), (nominal, 1)):
+        computed.clear()
+        got = simulation(u, du, theta, x0, gain)
+        assert computed == ([rows] if rows else [])
+        computed.clear()
+        expected = simulate_measured(space, 0.01, u, du, theta, x0, gain, inputs=inputs)
         for a, b in zip(got, expected):
-            np.testing.assert_array_equal(a, b)
-        assert (kept is not None) == (theta is not nominal and theta is not worn)  # the copies come after their equals
-    assert last_step.of(space, 0.02, unique_rows(nominal)[0]) is None  # another sample period
+            assert a.tobytes() == b.tobytes()
+    with pytest.raises(ValueError, match="inputs"):
+        MeasuredSimulation(space, 0.01, inputs, n - 1)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_a_rows_discretization_is_the_same_alone_and_in_a_batch(name):
+    """numpy's solve and matmul and the compiled exponential work matrix by matrix: what lets a kept row's
+    discretization stand for the one a batch would compute."""
+    model = get_model(name)
+    space = model.state_space
+    theta = model.parameter_vector() * np.random.default_rng(6).uniform(0.5, 2.0, (5, len(space.parameter_names)))
+    mats = space.matrices(theta)
+    batch = discretize(mats.A, mats.B, 0.01)
+    for k in range(len(theta)):
+        alone = space.matrices(theta[k : k + 1])
+        step = discretize(alone.A, alone.B, 0.01)
+        assert alone.A.tobytes() == mats.A[k : k + 1].tobytes() and alone.B.tobytes() == mats.B[k : k + 1].tobytes()
+        assert step.Phi.tobytes() == batch.Phi[k : k + 1].tobytes() and step.Gamma.tobytes() == batch.Gamma[k : k + 1].tobytes()
 
 
 def test_unique_rows_maps_every_row_to_an_identical_one():

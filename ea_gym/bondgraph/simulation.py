@@ -268,27 +268,28 @@ def simulate_batch(
     return np.ascontiguousarray(states.transpose(0, 2, 1))
 
 
-class LastDiscretization:
-    """The discretization of the distinct parameter rows of one ``simulate_measured`` call, for the next.
+def _checked_inputs(inputs: np.ndarray | None, n: int, input_rows: int) -> np.ndarray:
+    """``inputs``, the row of u and du driving each of n systems, as (n,) indices into ``input_rows`` rows; None:
+    system i's own row i."""
+    rows = np.arange(n) if inputs is None else np.asarray(inputs)
+    if rows.shape != (n,) or rows.dtype.kind not in "iu" or (n and not 0 <= rows.min() <= rows.max() < input_rows):
+        raise ValueError(f"simulate_batch: inputs must be {n} row indices into the {input_rows} rows of u, got {inputs!r}")
+    return np.ascontiguousarray(rows, dtype=np.intp)
 
-    Rows are compared bit for bit (as ``unique_rows`` does), so a reused discretization is the one the
-    call would compute.
-    """
 
-    def __init__(self) -> None:
-        self._key: tuple[StateSpaceModel, float, bytes] | None = None
-        self._step: Discretization | None = None
+def _simulate_rows(
+    step: Discretization, index: np.ndarray, u: np.ndarray, du: np.ndarray, inputs: np.ndarray, h: float, x0: np.ndarray,
+    gain: np.ndarray, signals: np.ndarray, last: np.ndarray,
+) -> None:
+    """``simulate_hermite`` over the kernel threads: system s with the discretization of row index[s] of ``step``,
+    driven by row inputs[s] of u and du (contiguous arrays)."""
+    Phi, Gamma = step.Phi, step.Gamma
 
-    def of(self, model: StateSpaceModel, sample_period: float, distinct: np.ndarray) -> Discretization | None:
-        """The kept discretization if it is of ``distinct`` (and ``model``, ``sample_period``), else None."""
-        key = self._key
-        if key is None or key[0] is not model or key[1] != sample_period or key[2] != distinct.tobytes():
-            return None
-        return self._step
+    def simulate_part(start: int, stop: int) -> None:
+        part = slice(start, stop)
+        simulate_hermite(Phi, Gamma, index[part], u, du, inputs[part], h, x0[part], gain[part], signals[part], last[part])
 
-    def keep(self, model: StateSpaceModel, sample_period: float, distinct: np.ndarray, step: Discretization) -> None:
-        """Keep ``step``, the discretization of the rows ``distinct`` (k, P)."""
-        self._key, self._step = (model, sample_period, distinct.tobytes()), step
+    over_rows(simulate_part, len(index))
 
 
 def simulate_measured(
@@ -300,7 +301,6 @@ def simulate_measured(
     x0: np.ndarray,
     gain: np.ndarray,
     out: np.ndarray | None = None,
-    last_step: LastDiscretization | None = None,
     inputs: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """``simulate_batch`` measured through diagonal measurement matrices, in the sensors' layout.
@@ -310,8 +310,6 @@ def simulate_measured(
             which row drives each system.
         gain: each system's measurement gain per state, (N, nx) (``Monitor.measurement_gain``).
         out: where to write the signals, (N, nx, T + 1); None: a new array.
-        last_step: the discretization of the previous call's distinct parameter rows, reused when this
-            call's are the same (a healthy batch's, step after step), and replaced when they are not.
         inputs: the row of u and du that drives each system, (N,) integers; None: system i's own row i.
 
     Returns:
@@ -320,31 +318,80 @@ def simulate_measured(
     """
     u, du, x0 = np.asarray(u, dtype=float), np.asarray(du, dtype=float), np.asarray(x0, dtype=float)
     n, nx = len(theta), model.n_states
-    rows = np.arange(n) if inputs is None else np.asarray(inputs)
     if u.ndim != 3 or du.shape != u.shape or (inputs is None and len(u) != n) or u.shape[2] != model.n_inputs or x0.shape != (n, nx):
         raise ValueError(
             f"simulate_batch: u and du must be (N, T + 1, {model.n_inputs}) and x0 (N, {nx}) for N = {n} parameter rows; "
             f"got u {u.shape}, du {du.shape}, x0 {x0.shape}"
         )
-    if rows.shape != (n,) or rows.dtype.kind not in "iu" or (n and not 0 <= rows.min() <= rows.max() < len(u)):
-        raise ValueError(f"simulate_batch: inputs must be {n} row indices into the {len(u)} rows of u, got {inputs!r}")
+    drive = _checked_inputs(inputs, n, len(u))
     signals = np.empty((n, nx, u.shape[1])) if out is None else out
     last = np.empty((n, nx))
     with single_threaded_blas():
         distinct, index = unique_rows(theta)
-        step = None if last_step is None else last_step.of(model, sample_period, distinct)
-        if step is None:
-            mats = model.matrices(distinct)
-            step = discretize(mats.A, mats.B, sample_period)
-            if last_step is not None:
-                last_step.keep(model, sample_period, distinct, step)
-        Phi, Gamma = np.ascontiguousarray(step.Phi), np.ascontiguousarray(step.Gamma)
-        u, du, x0, gain = np.ascontiguousarray(u), np.ascontiguousarray(du), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float)
-        h, drive = float(sample_period), np.ascontiguousarray(rows, dtype=np.intp)
-
-        def simulate_rows(start: int, stop: int) -> None:
-            part = slice(start, stop)
-            simulate_hermite(Phi, Gamma, index[part], u, du, drive[part], h, x0[part], gain[part], signals[part], last[part])
-
-        over_rows(simulate_rows, n)
+        step = Discretization(*_evaluate(model, distinct, sample_period)[:2])
+    u, du, x0, gain = np.ascontiguousarray(u), np.ascontiguousarray(du), np.ascontiguousarray(x0), np.ascontiguousarray(gain, dtype=float)
+    _simulate_rows(step, index, u, du, drive, float(sample_period), x0, gain, signals, last)
     return signals, last
+
+
+class RowDiscretizations:
+    """The discretization of every parameter row of a batch, kept from one simulation to the next: a row the same
+    (bit for bit) as the one in its place last time keeps its discretization, the others are computed, once per
+    distinct row among them.
+
+    Each row's discretization is arithmetic of its own (numpy's solve, the products and the exponential go
+    matrix by matrix), so a kept one is the one the batch would compute again.
+    """
+
+    def __init__(self) -> None:
+        self._key: tuple[StateSpaceModel, float] | None = None
+        self._rows = np.empty((0, 0))  # the parameter rows last given
+        self._step = Discretization(Phi=np.empty((0, 0, 0)), Gamma=np.empty((0, 0, 0)))  # of every row
+
+    def update(self, model: StateSpaceModel, sample_period: float, theta: np.ndarray) -> Discretization:
+        """The discretization of every row of ``theta`` (N, P): Phi (N, nx, nx) and Gamma (N, nx, HOLD_ORDER nu)."""
+        from ea_gym._kernels.rows import changed_rows, replace_rows
+
+        if self._key != (model, sample_period) or self._rows.shape != theta.shape:
+            n, nx = len(theta), model.n_states
+            self._key, self._rows = None, np.empty(theta.shape)  # valid once every row is computed
+            self._step = Discretization(Phi=np.empty((n, nx, nx)), Gamma=np.empty((n, nx, HOLD_ORDER * model.n_inputs)))
+            changed = np.arange(n)
+        else:
+            changed = changed_rows(theta, self._rows)
+        if len(changed):
+            fresh = theta[changed]
+            distinct, index = unique_rows(fresh)
+            with single_threaded_blas():
+                Phi, Gamma = _evaluate(model, distinct, sample_period)[:2]
+            replace_rows(changed, index, fresh, Phi, Gamma, self._rows, self._step.Phi, self._step.Gamma)
+            self._key = (model, sample_period)
+        return self._step
+
+
+class MeasuredSimulation:
+    """``simulate_measured`` of one batch, window after window (an environment's plants and references): the batch's
+    layout checked once, here, and every row's discretization kept while its parameters stay (``RowDiscretizations``).
+
+    Args:
+        model: the linear model.
+        sample_period: h in s.
+        inputs: the row of u and du that drives each of the N systems, (N,) integers.
+        input_rows: how many rows u and du hold.
+    """
+
+    def __init__(self, model: StateSpaceModel, sample_period: float, inputs: np.ndarray, input_rows: int):
+        self.model, self.h = model, float(sample_period)
+        self.inputs = _checked_inputs(inputs, len(inputs), input_rows)
+        self.discretizations = RowDiscretizations()
+        self._own_rows = np.arange(len(self.inputs))  # each system's own row of the kept discretizations
+
+    def __call__(self, u: np.ndarray, du: np.ndarray, theta: np.ndarray, x0: np.ndarray, gain: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``simulate_measured``'s signals (N, nx, T + 1) and last states (N, nx), of u and du (input_rows, T + 1, nu),
+        theta (N, P), x0 and gain (N, nx), float arrays laid out as declared (not checked again)."""
+        n, nx = len(self.inputs), self.model.n_states
+        signals, last = np.empty((n, nx, u.shape[1])), np.empty((n, nx))
+        step = self.discretizations.update(self.model, self.h, theta)
+        u, du, x0, gain = np.ascontiguousarray(u), np.ascontiguousarray(du), np.ascontiguousarray(x0), np.ascontiguousarray(gain)
+        _simulate_rows(step, self._own_rows, u, du, self.inputs, self.h, x0, gain, signals, last)
+        return signals, last

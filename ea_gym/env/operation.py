@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ea_gym.bondgraph.simulation import LastDiscretization, simulate_measured
+from ea_gym.bondgraph.simulation import MeasuredSimulation
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
@@ -108,19 +108,28 @@ class Operation:
         self.monitor = monitor
         self.n = n_systems
         self.nominal = model.parameter_vector()  # the reference's parameters
-        self._nominal_rows = np.tile(self.nominal, (n_systems, 1))  # one per system, as the batch joins them
+        # plant and reference in one batch: the plants' parameter rows (written each window), then the references'
+        self._theta = np.tile(self.nominal, (2 * n_systems, 1))
         self.h = 1.0 / sample_rate
         self.window = window
         self.samples = window_samples(window, self.h)
         self.window_grid = np.arange(self.samples + 1) * self.h  # s
         self.loads = Loads(model, n_systems, self.h, load_std)
         self.sensor_noise = SystemNoise(noise)
-        nx = len(model.state_names)
-        self.plant = np.zeros((n_systems, nx))  # energy variables at the end of the last window
-        self.reference = np.zeros((n_systems, nx))
+        self.states = np.zeros((2 * n_systems, len(model.state_names)))  # energy variables at the end of the last window
         self.elapsed = np.zeros(n_systems)  # operation time (s): the load's clock
-        self._last_step = LastDiscretization()  # a healthy batch's parameters repeat from step to step
-        self._inputs = np.tile(np.arange(n_systems), 2)  # the load row of each plant, then of each reference
+        # system i's load drives plant i and reference i; the reference rows, and a healthy batch's, keep their discretization
+        self.simulation = MeasuredSimulation(model.state_space, self.h, np.tile(np.arange(n_systems), 2), n_systems)
+
+    @property
+    def plant(self) -> np.ndarray:
+        """The plants' energy variables at the end of the last window, (N, nx)."""
+        return self.states[: self.n]
+
+    @property
+    def reference(self) -> np.ndarray:
+        """The references' energy variables at the end of the last window, (N, nx)."""
+        return self.states[self.n :]
 
     def start(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         """New episodes for the systems in ``mask``: at rest, a new load."""
@@ -141,18 +150,12 @@ class Operation:
     def run(self, parameters: np.ndarray, rngs: Sequence[np.random.Generator]) -> Window:
         """Simulate one window of every plant under its true ``parameters`` (N, P) and of the reference, and measure."""
         u, du = self.load(self.elapsed)
-        n = self.n
-        # plant and reference in one batch (the reference rows, and healthy plants, share one discretization)
-        theta = np.concatenate([parameters, self._nominal_rows])
+        n, theta = self.n, self._theta
+        theta[:n] = parameters
         loads, rates = self.model.source_inputs(u, du)  # system i's, driving plant i and reference i
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
-        gain = self.monitor.measurement_gain(theta)
-        x0 = np.concatenate([self.plant, self.reference])
-        signals, last = simulate_measured(
-            self.model.state_space, self.h, loads, rates, theta, x0, gain, last_step=self._last_step, inputs=self._inputs,
-        )
-        self.plant, self.reference = last[:n], last[n:]
-        self.elapsed = self.elapsed + self.window
+        signals, self.states = self.simulation(loads, rates, theta, self.states, self.monitor.measurement_gain(theta))
+        self.elapsed += self.window
         return Window(measured=self.sensor_noise(signals[:n], rngs), expected=signals[n:], load=u, load_rate=du)
 
 
