@@ -10,12 +10,13 @@ import pytest
 from numpy.polynomial import chebyshev
 from scipy.stats import norm
 
+from ea_gym._kernels.tracking import track_filters
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.loads import Sine, SinesLoad
 from ea_gym.models import get_model, spring_mass_damper
 from ea_gym.phm.config import PHMConfig
-from ea_gym.phm.estimation import ParameterEstimator, StepSignals
+from ea_gym.phm.estimation import ParameterEstimates, ParameterEstimator, StepSignals
 from ea_gym.phm.prognosis import drift_end_of_life
 from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 from ea_gym.plant import run_model
@@ -70,6 +71,50 @@ def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, v
             ll[s, f] = est.forget * ll[s, f] + density
 
 
+def measurement_variance(est: TrackingEstimator, measured: np.ndarray) -> np.ndarray:
+    """Each channel's noise variance (N, nx) in plain numpy: noise^2 x its clean RMS^2, from the noisy RMS over the step."""
+    mean_square = (measured**2).sum(axis=-1) / measured.shape[-1]
+    return np.maximum(est.noise**2 * mean_square / (1.0 + est.noise**2), 1e-30)
+
+
+def step_reference(est: TrackingEstimator, signals: StepSignals) -> ParameterEstimates:
+    """The estimator's step with everything around the filter bank in plain numpy: the measurement noise,
+    the fresh systems' filters started at nominal, those of a step longer than its signals carried over
+    the difference (theta += drift gap, P = J P J^T plus the random walks), then the filter bank."""
+    measured, t, hyp, c = signals.measured, signals.t, est.hypotheses, est.config
+    n, nx, samples = measured.shape
+    variance = measurement_variance(est, measured)
+    running = est.started.copy()
+    fresh = np.flatnonzero(~running)
+    gain = np.repeat(hyp.gain[None], len(fresh), axis=0)
+    est.z[fresh] = 0.0
+    est.z[fresh, :, :nx] = measured[fresh, None, :, 0] / gain
+    est.z[fresh, :, nx] = hyp.nominal
+    est.P[fresh] = 0.0
+    diagonal = np.arange(nx)
+    est.P[fresh[:, None, None], np.arange(len(hyp.nominal))[:, None], diagonal, diagonal] = variance[fresh, None, :] / gain**2
+    est.P[fresh[:, None], 1:, nx, nx] = (c.theta_prior * hyp.nominal[1:]) ** 2
+    est.P[fresh[:, None], 1:, nx + 1, nx + 1] = (c.drift_prior * hyp.nominal[1:]) ** 2
+    est.log_likelihood[fresh] = 0.0
+    est.started[:] = True
+    span = t - est.clock
+    held = running & (span > (samples - 1) * est.h * (1.0 + 1e-9))
+    for m in np.flatnonzero(held):
+        gap, z, P = span[m], est.z[m], est.P[m]
+        z[:, nx] = np.clip(z[:, nx] + gap * z[:, nx + 1], hyp.lo, hyp.hi)
+        P[:, nx, :] += gap * P[:, nx + 1, :]
+        P[:, :, nx] += gap * P[:, :, nx + 1]
+        P[:, nx, nx] += gap * est.process_noise[:, 0] / est.h
+        P[:, nx + 1, nx + 1] += gap * est.process_noise[:, 1] / est.h
+    est.clock = t.copy()
+    track_filters(
+        hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, est.process_noise, c.state_noise, est.forget, est.h,
+        np.where(held, 0.0, est.h), 0, measured, signals.load, signals.load_rate, variance, est.z, est.P, est.log_likelihood,
+        (0.0,) * nx, (0.0,) * (hyp.coefficients.shape[3] - nx),
+    )
+    return est.estimates(t)
+
+
 def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, model=None):
     """Step windows (1 s) of a sine-driven system (default the spring-mass-damper) whose parameters follow ``parameters(t)``."""
     model = model or spring_mass_damper()
@@ -99,12 +144,38 @@ def test_kernel_matches_numpy_reference() -> None:
     est.z[:, 1:, 2] *= 1.03  # off nominal, so that every theta-slope matters
     z, P, ll = est.z.copy(), est.P.copy(), est.log_likelihood.copy()
     for s in both[1:]:
-        variance = est.measurement_variance(s.measured)
+        variance = measurement_variance(est, s.measured)
         tracking_step_reference(est, s.measured, s.load, s.load_rate, variance, z, P, ll)
         est.update(s, np.ones(2, dtype=bool), suspects)
     np.testing.assert_allclose(est.z, z, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(est.P, P, rtol=1e-8, atol=1e-10 * np.abs(P).max())
     np.testing.assert_allclose(est.log_likelihood, ll, rtol=1e-10)
+
+
+def test_compiled_step_matches_numpy_around_the_filter_bank() -> None:
+    """The compiled step (noise, starts, carries over long steps, the filters, the estimates) gives the
+    numpy form's bits, through a reset and steps that stand for more time than their signals, in one
+    system or both."""
+    model, steps = plant_steps(None, 8.0, noise=0.01)
+    config = TrackingConfig(state_noise=1e-3)
+    compiled, numpy_form = (TrackingEstimator(model, RATE, 0.01, 2, config=config) for _ in range(2))
+    suspects = np.ones((2, 3), dtype=bool)
+    t = np.zeros(2)
+    for k, s in enumerate(steps):
+        t = t + np.array([[1.0, 1.0], [4.0, 1.0], [3.0, 2.5]][k % 3])  # held: both, the first, both
+        signals = StepSignals(np.concatenate([s.measured, 1.01 * s.measured]), np.repeat(s.load, 2, 0), np.repeat(s.load_rate, 2, 0), t)
+        if k == 2:
+            compiled.record_adjustment(np.array([0]), np.array([1]), np.array([0.01]))
+            numpy_form.record_adjustment(np.array([0]), np.array([1]), np.array([0.01]))
+        if k == 4:
+            compiled.reset(np.array([False, True]))
+            numpy_form.reset(np.array([False, True]))
+        out, expected = compiled.update(signals, np.ones(2, dtype=bool), suspects), step_reference(numpy_form, signals)
+        for name in ("z", "P", "log_likelihood", "clock", "started"):
+            np.testing.assert_array_equal(getattr(compiled, name), getattr(numpy_form, name), err_msg=name)
+        for name in ("value", "variance", "drift", "drift_variance", "covariance", "log_evidence", "estimated", "time"):
+            np.testing.assert_array_equal(getattr(out, name), getattr(expected, name), err_msg=name)
+    assert (compiled.clock == t).all() and compiled.started.all()
 
 
 def run_estimator(model, steps, config: TrackingConfig):

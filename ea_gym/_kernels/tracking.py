@@ -16,7 +16,12 @@ import math
 import numba
 import numpy as np
 
+from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
+from ea_gym._kernels.summation import numpy_sum, summation_scratch
+
 LOG_2PI = math.log(2.0 * math.pi)
+#: Smallest measurement noise variance (the channel's unit squared).
+VARIANCE_FLOOR = 1e-30
 
 
 @numba.njit(cache=True)
@@ -90,64 +95,173 @@ def parameter_fixed(terms: int, q: np.ndarray, own: int, lo: float, hi: float, z
 
 
 def track(
-    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
-    state_noise: float, forget: float, h: float, drift_time: np.ndarray,
-    systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
-    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
+    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, nominal: np.ndarray,
+    q: np.ndarray, prior: np.ndarray, state_noise: float, forget: float, h: float, noise_variance: float,
+    start: int, stop: int, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, t: np.ndarray,
+    started: np.ndarray, clock: np.ndarray, z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
+    estimates: np.ndarray, evidence: np.ndarray,
 ) -> None:
-    """Run every hypothesis's filter of the listed systems over samples 1..L of their step (in place).
-
-    The S x H filters run LANES at a time (``filter_samples``); those whose parameter is fixed
-    (``parameter_fixed``: the "none" hypothesis's) in blocks of their own, over their states alone.
+    """One step of systems [start, stop) of N (in place): each system's measurement noise
+    (``measurement_variance``), its filters started (``start_filters``) or carried over a step longer than its
+    signals (``carry_filters``), every hypothesis's filter over samples 1..L (``track_filters``), and the
+    estimates read off them. A system's results do not depend on the others', so parts of the systems run on
+    several threads (GIL released).
 
     Args:
         coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis;
             terms (H,): how many are used.
-        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``filter_samples``.
-        q: (H, 2) process-noise variances per sample of theta and drift.
+        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``filter_samples``;
+            nominal: (H,) theta at nominal, where a filter starts.
+        q: (H, 2) process-noise variances per sample of theta and drift; prior: (H, 2) their variances at the start.
         state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
         forget: factor on the log-likelihoods per sample.
-        h: sample period (s); drift_time: (S,) how far theta drifts per sample (s): h, or 0 where the
-            parameter holds over the step (it moves between steps instead).
-        systems: (S,) rows of z, P, log_likelihood that ``measured`` etc. (S, ...) belong to.
-        measured: (S, nx, L + 1); load, load_rate: (S, L + 1); variance: (S, nx) measurement noise variances.
+        h: sample period (s).
+        noise_variance: the sensors' noise variance as a fraction of each signal's mean square.
+        measured: (N, nx, L + 1); load, load_rate: (N, L + 1); t: (N,) the time at the step's end (s).
+        started: (N,) whose filters run (the others start at this step); clock: (N,) the time (s) the filters
+            describe; both updated.
         z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
+        estimates: (6, N, D) out, D = H - 1: each degradable parameter's value, variance, drift, drift
+            variance, (value, drift) covariance and the time (s) they describe; evidence: (N, H) out, the
+            log-likelihoods.
     """
     nx = measured.shape[1]
     # the sizes as tuple lengths, which the compiled code sees as constants: its loops over them unroll
     states, inputs = (0.0,) * nx, (0.0,) * (coefficients.shape[3] - nx)
-    track_filters(
-        coefficients, terms, lo, hi, gain, own, q, state_noise, forget, h, drift_time, systems, measured, load, load_rate, variance,
-        z, P, log_likelihood, states, inputs,
+    track_step(
+        coefficients, terms, lo, hi, gain, own, nominal, q, prior, state_noise, forget, h, noise_variance, start, stop,
+        measured, load, load_rate, t, started, clock, z, P, log_likelihood, estimates, evidence, states, inputs,
     )
 
 
+@numba.njit(cache=True)
+def measurement_variance(
+    measured: np.ndarray, noise_variance: float, squares: np.ndarray, scratch: tuple[np.ndarray, np.ndarray], out: np.ndarray
+) -> None:
+    """Each channel's noise variance (nx,) of one system's step (nx, L + 1) into ``out``: noise_variance x
+    its clean mean square, from the noisy one (numpy's sum of the squares, to the bit), and at least
+    ``VARIANCE_FLOOR`` (a channel at rest, zero signal and zero noise, is exact; the floor keeps its
+    update defined). squares: (L + 1,) workspace."""
+    samples = measured.shape[1]
+    for i in range(measured.shape[0]):
+        for k in range(samples):
+            squares[k] = measured[i, k] * measured[i, k]
+        mean_square = numpy_sum(squares, 0, samples, scratch) / samples
+        out[i] = numpy_maximum(noise_variance * mean_square / (1.0 + noise_variance), VARIANCE_FLOOR)
+
+
+@numba.njit(cache=True)
+def start_filters(
+    first: np.ndarray, variance: np.ndarray, gain: np.ndarray, nominal: np.ndarray, prior: np.ndarray,
+    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
+) -> None:
+    """A system's filters (z (H, nx + 2), P (H, nx + 2, nx + 2), log_likelihood (H,)) at nominal: the states
+    read off the step's first samples ``first`` (nx,) through the gains (H, nx), with their measurement's
+    ``variance`` (nx,); theta at ``nominal`` (H,), no drift, their variances ``prior`` (H, 2)."""
+    nx = first.shape[0]
+    for f in range(z.shape[0]):
+        P[f] = 0.0
+        for i in range(nx):
+            z[f, i] = first[i] / gain[f, i]
+            P[f, i, i] = variance[i] / (gain[f, i] * gain[f, i])
+        z[f, nx], z[f, nx + 1] = nominal[f], 0.0
+        P[f, nx, nx], P[f, nx + 1, nx + 1] = prior[f, 0], prior[f, 1]
+        log_likelihood[f] = 0.0
+
+
+@numba.njit(cache=True)
+def carry_filters(gap: float, lo: np.ndarray, hi: np.ndarray, q: np.ndarray, h: float, z: np.ndarray, P: np.ndarray) -> None:
+    """A system's filters (z (H, nx + 2), P (H, nx + 2, nx + 2)) carried over ``gap`` s without signals:
+    theta += drift gap (kept in [lo, hi]), with the random walks' variance over the gap (q (H, 2) per
+    sample of h s); the states, whose signal goes on, stay. P = J P J^T with J the identity but for
+    J[theta, drift] = gap: theta's row, then its column."""
+    nx = z.shape[1] - 2
+    for f in range(z.shape[0]):
+        z[f, nx] = numpy_minimum(numpy_maximum(z[f, nx] + gap * z[f, nx + 1], lo[f]), hi[f])
+        for c in range(nx + 2):
+            P[f, nx, c] += gap * P[f, nx + 1, c]
+        for a in range(nx + 2):
+            P[f, a, nx] += gap * P[f, a, nx + 1]
+        P[f, nx, nx] += gap * q[f, 0] / h
+        P[f, nx + 1, nx + 1] += gap * q[f, 1] / h
+
+
 @numba.njit(cache=True, nogil=True)
-def track_filters(
-    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
-    state_noise: float, forget: float, h: float, drift_time: np.ndarray,
-    systems: np.ndarray, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
-    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray, states: tuple[float, ...], inputs: tuple[float, ...],
+def track_step(
+    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, nominal: np.ndarray,
+    q: np.ndarray, prior: np.ndarray, state_noise: float, forget: float, h: float, noise_variance: float,
+    start: int, stop: int, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, t: np.ndarray,
+    started: np.ndarray, clock: np.ndarray, z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
+    estimates: np.ndarray, evidence: np.ndarray, states: tuple[float, ...], inputs: tuple[float, ...],
 ) -> None:
     """``track``, nx = len(states) and the input's coefficients per sample len(inputs)."""
+    nx, samples = measured.shape[1], measured.shape[2]
+    variance = np.empty((stop - start, nx))
+    drift_time = np.empty(stop - start)
+    squares, scratch = np.empty(samples), summation_scratch()
+    # a step may stand for more (degradation) time than its signals last (the environment's step_seconds >
+    # window): the plant's parameters then hold over each window and move between windows, so the
+    # filters carry theta over the step's whole span before its signals, not within
+    longest = (samples - 1) * h * (1.0 + 1e-9)
+    for s in range(stop - start):
+        m = start + s
+        measurement_variance(measured[m], noise_variance, squares, scratch, variance[s])
+        held = False
+        if not started[m]:
+            start_filters(measured[m, :, 0], variance[s], gain, nominal, prior, z[m], P[m], log_likelihood[m])
+            started[m] = True
+        elif t[m] - clock[m] > longest:
+            carry_filters(t[m] - clock[m], lo, hi, q, h, z[m], P[m])
+            held = True
+        clock[m] = t[m]
+        drift_time[s] = 0.0 if held else h
+    track_filters(
+        coefficients, terms, lo, hi, gain, own, q, state_noise, forget, h, drift_time, start, measured, load, load_rate, variance,
+        z, P, log_likelihood, states, inputs,
+    )
+    for m in range(start, stop):
+        for d in range(z.shape[1] - 1):
+            estimates[0, m, d], estimates[1, m, d] = z[m, d + 1, nx], P[m, d + 1, nx, nx]
+            estimates[2, m, d], estimates[3, m, d] = z[m, d + 1, nx + 1], P[m, d + 1, nx + 1, nx + 1]
+            estimates[4, m, d], estimates[5, m, d] = P[m, d + 1, nx, nx + 1], t[m]
+        for f in range(z.shape[1]):
+            evidence[m, f] = log_likelihood[m, f]
+
+
+@numba.njit(cache=True)
+def track_filters(
+    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
+    state_noise: float, forget: float, h: float, drift_time: np.ndarray, offset: int,
+    measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
+    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray, states: tuple[float, ...], inputs: tuple[float, ...],
+) -> None:
+    """Every hypothesis's filter of systems offset, offset + 1, ... (one per entry of drift_time, variance
+    (S, nx)) over samples 1..L of their step (in place); drift_time: (S,) how far theta drifts per
+    sample (s): h, or 0 where the parameter holds over the step (it moves between steps instead).
+
+    The S x H filters run LANES at a time (``filter_samples``); those whose parameter is fixed
+    (``parameter_fixed``: the "none" hypothesis's) in blocks of their own, over their states alone.
+    """
     n_hyp = coefficients.shape[0]
     nx, nw = len(states), len(inputs)
     n = nx + 2
     samples = measured.shape[2]
+    n_systems = drift_time.shape[0]
     # what each of a system's filters reads at sample k: the input's coefficients (``hermite_row``'s
     # four over interval k, then 1 for the constant sources' column where there is one) and the measurements
-    W, Y = np.ones((samples, nw, systems.shape[0])), np.empty((samples, nx, systems.shape[0]))
-    for s in range(systems.shape[0]):
+    W, Y = np.ones((samples, nw, n_systems)), np.empty((samples, nx, n_systems))
+    for s in range(n_systems):
+        m = offset + s
         for k in range(1, samples):
-            W[k, 0, s], W[k, 1, s], W[k, 2, s], W[k, 3, s] = hermite_row(load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k], h)
+            W[k, 0, s], W[k, 1, s], W[k, 2, s], W[k, 3, s] = hermite_row(load[m, k - 1], load[m, k], load_rate[m, k - 1], load_rate[m, k], h)
             for i in range(nx):
-                Y[k, i, s] = measured[s, i, k]
+                Y[k, i, s] = measured[m, i, k]
     # the filters as (system, hypothesis), those with a fixed parameter last
-    listed = np.empty((systems.shape[0] * n_hyp, 2), dtype=np.int64)
+    listed = np.empty((n_systems * n_hyp, 2), dtype=np.int64)
     n_full, n_fixed = 0, 0
-    for s in range(systems.shape[0]):
+    for s in range(n_systems):
         for f in range(n_hyp):
-            if parameter_fixed(terms[f], q[f], own[f], lo[f], hi[f], z[systems[s], f], P[systems[s], f]):
+            if parameter_fixed(terms[f], q[f], own[f], lo[f], hi[f], z[offset + s, f], P[offset + s, f]):
                 n_fixed += 1
                 listed[-n_fixed, 0], listed[-n_fixed, 1] = s, f
             else:
@@ -165,15 +279,15 @@ def track_filters(
             lane_system[b] = s
             # the interpolant at the step's first theta, carried to each sample's theta by its slope:
             # theta moves by parts per thousand over a step, a second-order error of ~1e-8 in Phi
-            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], z[systems[s], f, nx], value, slope, basis)
-            load_lane(block, b, z[systems[s], f], P[systems[s], f], value, slope, gain[f], variance[s], q[f], drift_time[s], lo[f], hi[f], own[f], nw)
+            chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], z[offset + s, f, nx], value, slope, basis)
+            load_lane(block, b, z[offset + s, f], P[offset + s, f], value, slope, gain[f], variance[s], q[f], drift_time[s], lo[f], hi[f], own[f], nw)
         if fixed:
             filter_samples(block, lanes, lane_system, W, Y, state_noise, density, states, states, inputs)
         else:
             filter_samples(block, lanes, lane_system, W, Y, state_noise, density, states, states + (0.0, 0.0), inputs)
         for b in range(lanes):
             s, f = listed[first + b]
-            row = systems[s]
+            row = offset + s
             for a in range(n):
                 z[row, f, a] = block[at(a, b)]
                 for c in range(n):

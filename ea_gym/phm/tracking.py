@@ -60,10 +60,6 @@ if TYPE_CHECKING:
     from ea_gym.phm.config import PHMConfig
 
 
-#: Smallest measurement noise variance (the channel's unit squared).
-VARIANCE_FLOOR = 1e-30
-
-
 @dataclass(frozen=True)
 class TrackingConfig:
     """Filter settings; parameter quantities relative to the parameter's nominal value.
@@ -249,16 +245,22 @@ class TrackingEstimator:
         relative = np.array([theta_noise.get(name, self.config.theta_noise) for name in self.degradable])
         self.process_noise[1:, 0] = (relative * nominal[1:]) ** 2 * self.h
         self.process_noise[1:, 1] = (self.config.drift_noise * nominal[1:]) ** 2 * self.h
+        # theta's and the drift's variances at the start ("none" has neither)
+        self.prior = np.zeros((len(nominal), 2))
+        self.prior[1:, 0] = (self.config.theta_prior * nominal[1:]) ** 2
+        self.prior[1:, 1] = (self.config.drift_prior * nominal[1:]) ** 2
         self.forget = math.exp(-self.h / self.config.evidence_memory)
         nx = model.state_space.n_states
         self.z = np.zeros((n_systems, len(nominal), nx + 2))
         self.P = np.zeros((n_systems, len(nominal), nx + 2, nx + 2))
         self.log_likelihood = np.zeros((n_systems, len(nominal)))
         self.started = np.zeros(n_systems, dtype=bool)
-        self._systems = np.arange(n_systems)  # every row, as the kernel takes the rows it runs
         self.clock = np.zeros(n_systems)  # the time (s) the filters describe, the end of the last step
         self.lag = 0.0  # its estimates describe the step's end
         self.warmup_steps = 0  # and come from the first step on
+        # every hypothesis is estimated at every step: one read-only answer shared by every step's estimates
+        self._estimated = np.ones((n_systems, len(self.degradable)), dtype=bool)
+        self._estimated.flags.writeable = False
 
     @classmethod
     def from_chain(cls, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> TrackingEstimator:
@@ -281,80 +283,42 @@ class TrackingEstimator:
         nx = self.model.state_space.n_states
         self.z[np.asarray(systems), np.asarray(parameters) + 1, nx] += np.asarray(changes, dtype=float)
 
-    def measurement_variance(self, measured: np.ndarray) -> np.ndarray:
-        """Each channel's noise variance (N, nx): noise^2 x its clean RMS^2, from the noisy RMS over the step."""
-        mean_square = (measured**2).sum(axis=-1) / measured.shape[-1]  # np.mean's arithmetic, without its wrapper
-        # a channel at rest (zero signal, so zero noise) is exact; the floor keeps its update defined
-        return np.maximum(self.noise**2 * mean_square / (1.0 + self.noise**2), VARIANCE_FLOOR)
-
-    def start(self, rows: np.ndarray, measured: np.ndarray, variance: np.ndarray) -> None:
-        """Filters of systems ``rows`` at nominal, their states from the step's first sample."""
-        hyp, c = self.hypotheses, self.config
-        nx = measured.shape[1]
-        gain = np.repeat(hyp.gain[None], len(rows), axis=0)  # (S, H, nx)
-        z = np.zeros((len(rows), len(hyp.nominal), nx + 2))
-        z[:, :, :nx] = measured[:, None, :, 0] / gain
-        z[:, :, nx] = hyp.nominal
-        P = np.zeros((len(rows),) + self.P.shape[1:])
-        diagonal = np.arange(nx)
-        P[:, :, diagonal, diagonal] = variance[:, None, :] / gain**2
-        P[:, 1:, nx, nx] = (c.theta_prior * hyp.nominal[1:]) ** 2
-        P[:, 1:, nx + 1, nx + 1] = (c.drift_prior * hyp.nominal[1:]) ** 2
-        self.z[rows], self.P[rows] = z, P
-        self.log_likelihood[rows] = 0.0
-        self.started[rows] = True
-
     def update(self, signals: StepSignals, alarm: np.ndarray, suspects: np.ndarray) -> ParameterEstimates:
         """Run every filter over one step, whatever ``alarm`` (N,) and ``suspects`` (N, D) say: a fault
         grows before its alarm, and a later suspect needs its whole history (D + 1 filters per system,
-        each ~0.15 us per sample in blocks). ``estimated`` is therefore true everywhere."""
+        each ~0.15 us per sample in blocks). ``estimated`` is therefore true everywhere.
+
+        A system's filters start, at nominal, at its first step after a reset; where a step stands for
+        more time than its signals last (``StepSignals.t`` moved by more), its filters carry their theta
+        over the difference before the signals (see the module docstring). Compiled (``track``), step
+        and estimates alike.
+        """
         measured = np.ascontiguousarray(signals.measured, dtype=float)
         n, nx = self.n, self.model.state_space.n_states
         if measured.ndim != 3 or measured.shape[:2] != (n, nx):
             raise ValueError(f"signals.measured must be (N={n}, nx={nx}, L + 1), got {measured.shape}")
-        if np.shape(signals.load) != (n, measured.shape[2]) or np.shape(signals.load_rate) != (n, measured.shape[2]):
-            raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
-        variance = self.measurement_variance(measured)
-        t = np.asarray(signals.t, dtype=float)
-        running = self.started.copy()  # the filters that ran before this step
-        if not running.all():
-            fresh = np.flatnonzero(~running)
-            self.start(fresh, measured[fresh], variance[fresh])
-        # a step may stand for more (degradation) time than its signals last (the environment's
-        # step_seconds > window): the plant's parameters then hold over each window and move between
-        # windows, so the filters carry theta over the step's whole span before its signals, not within
-        span = t - self.clock
-        held = running & (span > (measured.shape[2] - 1) * self.h * (1.0 + 1e-9))
-        if held.any():
-            self.advance_clock(np.where(held, span, 0.0))
-        self.clock = t.copy()
-        hyp = self.hypotheses
-        drift_time = np.where(held, 0.0, self.h)
         load, load_rate = np.ascontiguousarray(signals.load, dtype=float), np.ascontiguousarray(signals.load_rate, dtype=float)
+        if load.shape != (n, measured.shape[2]) or load_rate.shape != (n, measured.shape[2]):
+            raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
+        t = np.ascontiguousarray(signals.t, dtype=float)
+        if t.shape != (n,):
+            raise ValueError(f"signals.t must be (N={n},), got {t.shape}")
+        hyp, config = self.hypotheses, self.config
+        estimates, evidence = np.empty((6, n, len(self.degradable))), np.empty((n, len(hyp.nominal)))
 
         def track_rows(start: int, stop: int) -> None:
-            rows = slice(start, stop)
             track(
-                hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, self.process_noise, self.config.state_noise, self.forget, self.h,
-                drift_time[rows], self._systems[rows], measured[rows], load[rows], load_rate[rows], variance[rows], self.z, self.P,
-                self.log_likelihood,
+                hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, hyp.nominal, self.process_noise, self.prior,
+                config.state_noise, self.forget, self.h, self.noise**2, start, stop, measured, load, load_rate, t,
+                self.started, self.clock, self.z, self.P, self.log_likelihood, estimates, evidence,
             )
 
         over_rows(track_rows, n)
-        return self.estimates(t)
-
-    def advance_clock(self, gap: np.ndarray) -> None:
-        """Carry every filter's parameter over ``gap`` (N,) seconds without signals: theta += drift gap,
-        with the random walks' variance over the gap; the states, whose signal goes on, stay."""
-        nx = self.model.state_space.n_states
-        hyp = self.hypotheses
-        self.z[:, :, nx] = np.clip(self.z[:, :, nx] + gap[:, None] * self.z[:, :, nx + 1], hyp.lo, hyp.hi)
-        # P = J P J^T with J the identity but for J[theta, drift] = gap
-        P = self.P
-        P[:, :, nx, :] += gap[:, None, None] * P[:, :, nx + 1, :]
-        P[:, :, :, nx] += gap[:, None, None] * P[:, :, :, nx + 1]
-        P[:, :, nx, nx] += gap[:, None] * self.process_noise[:, 0] / self.h
-        P[:, :, nx + 1, nx + 1] += gap[:, None] * self.process_noise[:, 1] / self.h
+        value, variance, drift, drift_variance, covariance, time = estimates
+        return ParameterEstimates(
+            value=value, variance=variance, drift=drift, drift_variance=drift_variance, covariance=covariance, log_evidence=evidence,
+            estimated=self._estimated, time=time,
+        )
 
     def estimates(self, t: np.ndarray) -> ParameterEstimates:
         """The filters' current estimates at times ``t`` (N,)."""
@@ -366,7 +330,7 @@ class TrackingEstimator:
             drift_variance=self.P[:, 1:, nx + 1, nx + 1].copy(),
             covariance=self.P[:, 1:, nx, nx + 1].copy(),
             log_evidence=self.log_likelihood.copy(),
-            estimated=np.ones((self.n, len(self.degradable)), dtype=bool),
+            estimated=self._estimated,
             time=t[:, None].repeat(len(self.degradable), axis=1),
         )
 
