@@ -10,11 +10,10 @@ at every step.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import cast
 
 import numpy as np
 
-from ea_gym._kernels.history import step_sums
+from ea_gym._kernels.history import record_step
 from ea_gym.diagnosis.monitor import MonitorWindow
 
 
@@ -69,9 +68,16 @@ def _is_window(buffer: np.ndarray, backing: np.ndarray) -> bool:
     )
 
 
+#: The histories ``MonitorHistory.record`` pushes, in the order ``record_step`` takes them.
+SLIDING = ("ea", "ea_reference", "gram", "cross", "balance", "balance_square", "dissipated", "noise")
+
+
 @dataclass
 class MonitorHistory:
     """The chain's clock and the monitor's outputs over the last steps, N systems.
+
+    Each history is a window on the last axis of a backing array twice its length, slid on at each step as
+    ``push_window`` slides one: its fields are written in place (as ``reset`` writes them), not replaced.
 
     Attributes:
         time: time since the last reset at the end of the step (s), (N,).
@@ -94,7 +100,25 @@ class MonitorHistory:
     balance_square: np.ndarray
     dissipated: np.ndarray
     noise: np.ndarray
-    _starts: dict[str, tuple[np.ndarray, np.ndarray, int]] = field(default_factory=dict, init=False, repr=False, compare=False)
+    #: per history in ``SLIDING``: its window at each start on its backing array (0 to its length)
+    _windows: list[list[np.ndarray]] = field(default_factory=list, init=False, repr=False, compare=False)
+    #: the backing arrays as (N, entries per step, 2 length), the windows' starts and lengths: ``record_step``'s
+    _histories: tuple[np.ndarray, ...] = field(default=(), init=False, repr=False, compare=False)
+    _starts: np.ndarray = field(default_factory=lambda: np.zeros(len(SLIDING), dtype=np.int64), init=False, repr=False, compare=False)
+    _lengths: np.ndarray = field(default_factory=lambda: np.zeros(len(SLIDING), dtype=np.int64), init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        histories = []
+        for i, name in enumerate(SLIDING):
+            values = getattr(self, name)
+            length = values.shape[-1]
+            backing = np.empty(values.shape[:-1] + (2 * length,))
+            backing[..., :length] = values
+            self._windows.append([backing[..., start : start + length] for start in range(length + 1)])
+            histories.append(backing.reshape(len(backing), -1, 2 * length))
+            self._lengths[i] = length
+            setattr(self, name, self._windows[i][0])
+        self._histories = tuple(histories)
 
     @classmethod
     def new(cls, n: int, elements: int, components: int, states: int, subs: int, frame_steps: int, regression_steps: int,
@@ -119,30 +143,14 @@ class MonitorHistory:
             history[rows] = 0.0
 
     def record(self, window: MonitorWindow, step_time: float, dissipators: np.ndarray) -> None:
-        """Append one step's monitor outputs; ``dissipators``: the element indices of the dissipators."""
-        self.time = self.time + step_time
-        self.steps = self.steps + 1
-        n, components = window.cross.shape[0], window.cross.shape[2]
-        # the isolation frame and the balance evidence need only their sums: one entry per step
-        gram, cross = np.empty((n, components, components, 1)), np.empty((n, components, 1))
-        balance, balance_square, dissipated = np.empty((n, 1)), np.empty((n, 1)), np.empty((n, 1))
-        step_sums(window.gram, window.cross, window.balance, window.ea_reference, dissipators, gram, cross, balance, balance_square, dissipated)
-        for name, new in (
-            ("ea", window.ea), ("ea_reference", window.ea_reference), ("gram", gram), ("cross", cross), ("balance", balance),
-            ("balance_square", balance_square), ("dissipated", dissipated), ("noise", window.noise[..., None]),
-        ):
-            self._push(name, new)
+        """Append one step's monitor outputs; ``dissipators``: the element indices of the dissipators.
 
-    def _push(self, name: str, new: np.ndarray) -> None:
-        """``push_window`` on the history ``name``, its window's start kept from the last push (while it is that window)."""
-        current = getattr(self, name)
-        known = self._starts.get(name)
-        if known is not None and known[0] is current:
-            backing = known[1]
-            moved, start = slide_window(backing, known[2], current, new)
-        else:
-            moved = push_window(current, new)
-            backing = cast(np.ndarray, moved.base)  # push_window's result is a window on its backing array
-            start = window_start(moved, backing)
-        self._starts[name] = (moved, backing, start)
-        setattr(self, name, moved)
+        The isolation frame and the balance evidence need only the step's sums of the balance regression:
+        one entry per step (compiled, numpy's sums to the bit: ``record_step``).
+        """
+        record_step(
+            window.ea, window.ea_reference, window.gram, window.cross, window.balance, window.noise, dissipators, step_time,
+            self.time, self.steps, self._histories, self._starts, self._lengths,
+        )
+        for name, windows, start in zip(SLIDING, self._windows, self._starts.tolist()):
+            setattr(self, name, windows[start])
