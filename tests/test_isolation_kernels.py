@@ -3,7 +3,7 @@ chi-square (``np.linalg.pinv``, ``np.sum``) and the fusion of the evidence."""
 
 import numpy as np
 
-from ea_gym._kernels.isolation import history_sums, network_average, pseudo_inverse_factors
+from ea_gym._kernels.isolation import balance_log_ratios, chi_squares, history_sums, network_average, pseudo_inverse_factors
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.models import spring_mass_damper
 from ea_gym.numerics import TINY
@@ -49,6 +49,40 @@ def test_balance_chi_square_equals_its_numpy_definition_to_the_bit():
     columns = np.array([0, 1, 2])
     expected = chi_square_by_definition(gram, cross, square, windows, columns)
     assert balance_chi_square(gram, cross, square, windows, columns).tobytes() == expected.tobytes()
+
+
+def test_chi_squares_explained_sum_is_einsums_for_any_number_of_components():
+    # einsum adds the C^2 products in turn from 0 for batches of two or more (a single row with C = 2 it
+    # iterates otherwise); the kernel does so for every batch, a row alone included
+    rng = np.random.default_rng(12)
+    for components in (2, 3, 4, 6):
+        gram, cross, square = random_regressions(rng, 200, components)
+        inverse = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
+        windows = rng.integers(1, 60, 200)
+        columns = np.arange(components)
+        chi2 = chi_squares(gram, cross, square, windows, inverse, columns)
+        expected = chi_square_by_definition(gram, cross, square, windows, columns)
+        assert chi2.tobytes() == expected.tobytes()
+        one = [slice(m, m + 1) for m in range(200)]
+        alone = np.concatenate([chi_squares(gram[m], cross[m], square[m], windows[m], inverse[m], columns) for m in one])
+        assert alone.tobytes() == chi2.tobytes()
+
+
+def test_balance_log_ratios_equal_the_numpy_form_of_the_balance_evidence():
+    rng = np.random.default_rng(13)
+    n, span, windows_per_step, inflation = 50, 25, 3, 2.7
+    gram, cross, square = random_regressions(rng, 30)
+    square[:2] = np.nan  # NaN chi-squares propagate through the smallest
+    rows = rng.permutation(n)[:30]
+    steps = rng.integers(0, 60, n)
+    inverse = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
+    for columns in (np.array([0, 1, 2]), np.array([2, -1, 0, 1])):
+        windows = np.minimum(steps[rows], span) * windows_per_step
+        chi2 = chi_square_by_definition(gram, cross, square, windows, columns)
+        expected = np.zeros((n, 1 + len(columns)))
+        expected[rows] = -0.5 * (chi2 - np.minimum.reduce(chi2, axis=1, keepdims=True)) / inflation
+        got = balance_log_ratios(gram, cross, square, inverse, steps, rows, span, windows_per_step, columns, inflation, n)
+        assert np.isnan(got[rows[:2]]).all() and got.tobytes() == expected.tobytes()
 
 
 def test_pseudo_inverse_factors_multiply_to_numpys_pinv():

@@ -81,25 +81,57 @@ def pseudo_inverse_factors(values: np.ndarray, vectors: np.ndarray, rcond: float
 
 @numba.njit(cache=True)
 def chi_squares(
-    gram: np.ndarray, cross: np.ndarray, square: np.ndarray, windows: np.ndarray, explained: np.ndarray, columns: np.ndarray
+    gram: np.ndarray, cross: np.ndarray, square: np.ndarray, windows: np.ndarray, inverse: np.ndarray, columns: np.ndarray
 ) -> np.ndarray:
-    """``balance_chi_square`` (M, 1 + D) from its sums and the full regression's explained sum of squares (M,)."""
+    """``balance_chi_square`` (M, 1 + D) from its sums and the pseudo-inverse (M, C, C) of ``gram``.
+
+    The full regression's explained sum of squares is ``np.einsum("ni,nij,nj->n", cross, inverse, cross)``
+    in einsum's order: each product left to right, all C^2 of them added in turn from 0.
+    """
     M, C = cross.shape
     D = len(columns)
     chi2 = np.empty((M, 1 + D))
     for m in range(M):
-        variance = numpy_maximum(square[m] - explained[m], TINY) / max(windows[m] - C, 1)
-        chi2[m, 0] = numpy_maximum(explained[m], 0.0) / variance
+        explained = 0.0
+        for i in range(C):
+            for j in range(C):
+                explained += cross[m, i] * inverse[m, i, j] * cross[m, j]
+        variance = numpy_maximum(square[m] - explained, TINY) / max(windows[m] - C, 1)
+        chi2[m, 0] = numpy_maximum(explained, 0.0) / variance
         smallest = chi2[m, 0]
         for d in range(D):
             c = columns[d]
-            alone = cross[m, c] ** 2 / numpy_maximum(gram[m, c, c], TINY) if c >= 0 else explained[m]
-            chi2[m, 1 + d] = numpy_maximum(explained[m] - alone, 0.0) / variance
+            alone = cross[m, c] ** 2 / numpy_maximum(gram[m, c, c], TINY) if c >= 0 else explained
+            chi2[m, 1 + d] = numpy_maximum(explained - alone, 0.0) / variance
             smallest = numpy_minimum(smallest, chi2[m, 1 + d])
         for d in range(D):
             if columns[d] < 0:
                 chi2[m, 1 + d] = smallest
     return chi2
+
+
+@numba.njit(cache=True)
+def balance_log_ratios(
+    gram: np.ndarray, cross: np.ndarray, square: np.ndarray, inverse: np.ndarray, steps: np.ndarray, rows: np.ndarray, span: int,
+    windows_per_step: int, columns: np.ndarray, inflation: float, n: int,
+) -> np.ndarray:
+    """``Isolation.balance_evidence`` (n, 1 + D) from the sums of ``rows``' last ``span`` steps (M of n systems,
+    distinct) and the pseudo-inverse of their gram: each row's windows are min(steps, span) times
+    ``windows_per_step``; its log likelihood ratios -0.5 (chi2 - its smallest) / ``inflation``, in
+    numpy's order; 0 for the other systems."""
+    M = len(rows)
+    windows = np.empty(M, dtype=np.int64)
+    for m in range(M):
+        windows[m] = min(steps[rows[m]], span) * windows_per_step
+    chi2 = chi_squares(gram, cross, square, windows, inverse, columns)
+    evidence = np.zeros((n, chi2.shape[1]))
+    for m in range(M):
+        smallest = chi2[m, 0]
+        for k in range(1, chi2.shape[1]):
+            smallest = numpy_minimum(smallest, chi2[m, k])
+        for k in range(chi2.shape[1]):
+            evidence[rows[m], k] = -0.5 * (chi2[m, k] - smallest) / inflation
+    return evidence
 
 
 @numba.njit(cache=True)

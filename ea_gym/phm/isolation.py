@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ea_gym._kernels.isolation import (
+    balance_log_ratios,
     belief_inputs,
     chi_squares,
     history_sums,
@@ -59,12 +60,15 @@ def balance_chi_square(gram: np.ndarray, cross: np.ndarray, square: np.ndarray, 
         columns: each degradable parameter's component column, -1 for one that is no component's: such
             a hypothesis cannot be judged by the balance and gets the smallest chi-square (no evidence).
     """
-    # a pseudo-inverse: a component the span barely excites drops out instead of taking a ridge's bias
-    # (numpy's pinv, hermitian: its eigendecomposition and product are numpy's, the steps between compiled)
+    return chi_squares(gram, cross, square, windows, _pseudo_inverse(gram), columns)
+
+
+def _pseudo_inverse(gram: np.ndarray) -> np.ndarray:
+    """``np.linalg.pinv(gram, rcond=_PINV_RCOND, hermitian=True)`` of the grams (N, C, C): a component the span
+    barely excites drops out instead of taking a ridge's bias. numpy's eigendecomposition and product, the
+    steps between compiled."""
     left, right_t, tied = pseudo_inverse_factors(*np.linalg.eigh(gram), _PINV_RCOND)
-    inverse = np.linalg.pinv(gram, rcond=_PINV_RCOND, hermitian=True) if tied else np.matmul(left, right_t.transpose(0, 2, 1))
-    explained = np.einsum("ni,nij,nj->n", cross, inverse, cross)
-    return chi_squares(gram, cross, square, windows, explained, columns)
+    return np.linalg.pinv(gram, rcond=_PINV_RCOND, hermitian=True) if tied else np.matmul(left, right_t.transpose(0, 2, 1))
 
 
 @dataclass(frozen=True)
@@ -188,18 +192,17 @@ class Isolation:
 
     def balance_evidence(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
         """Log likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
-        evidence = np.zeros((self.n, len(self.classes)))
         rows = alarm.nonzero()[0]
         if len(rows) == 0:
-            return evidence
+            return np.zeros((self.n, len(self.classes)))
         span = self.evidence_steps
         gram, cross, square = history_sums(history.gram, history.cross, history.balance_square[:, None], rows, span)
-        windows = np.minimum(history.steps[rows], span) * self.balance_windows_per_step
-        chi2 = balance_chi_square(gram, cross, square[:, 0], windows, self.balance_column)
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
         # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
-        evidence[rows] = -0.5 * (chi2 - np.minimum.reduce(chi2, axis=1, keepdims=True)) / self.config.balance_inflation
-        return evidence
+        return balance_log_ratios(
+            gram, cross, square[:, 0], _pseudo_inverse(gram), history.steps, rows, span, self.balance_windows_per_step, self.balance_column,
+            self.config.balance_inflation, self.n,
+        )
 
     def fuse(self, alarm: np.ndarray, log_evidence: np.ndarray, estimated: np.ndarray, balance: np.ndarray) -> Fusion:
         """The belief (N, K) from the network's average, the estimator's log evidence (N, K) and the balance's
