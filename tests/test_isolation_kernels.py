@@ -97,10 +97,14 @@ def test_history_sums_equal_numpys_sums_of_the_rows_windows():
     backing = rng.normal(size=(6, 3, 3, 40))
     gram, cross, other = backing[..., 7:27], rng.normal(size=(6, 3, 40))[..., 13:33], rng.normal(size=(6, 4, 30))[..., 5:25]
     rows = np.array([5, 0, 3])
-    sums = history_sums(gram, cross, other, rows, 10)
+    sums = history_sums(gram, cross, other, rows, 10, False)
     expected = gram[rows, ..., -10:].sum(-1), cross[rows, ..., -10:].sum(-1), other[rows].sum(-1)
     for got, want in zip(sums, expected):
         assert got.tobytes() == want.tobytes()
+    for got, want in zip(history_sums(gram, cross, other, rows, 10, True), expected):
+        by_system = np.zeros((6,) + want.shape[1:])
+        by_system[rows] = want
+        assert got.tobytes() == by_system.tobytes()
 
 
 def test_network_average_moves_the_counted_systems_as_numpy_does():

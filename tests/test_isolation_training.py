@@ -230,5 +230,11 @@ def test_mlp_probabilities_by_hand() -> None:
     logits = np.stack([2 * h, -h + 1], axis=1)
     expected = np.exp(logits) / np.exp(logits).sum(axis=1, keepdims=True)
     probabilities = np.empty((2, 2))
-    mlp_probabilities(x, weights, biases, probabilities)
+    assert mlp_probabilities(x, np.zeros(2), np.ones(2), weights, biases, probabilities)
     np.testing.assert_allclose(probabilities, expected, rtol=1e-15)
+    # standardised inside: the inputs shifted and scaled back give the same bits; a NaN input is reported
+    mean, scale = np.array([0.5, -2.0]), np.array([4.0, 0.5])
+    standardised = np.empty((2, 2))
+    assert mlp_probabilities(x * scale + mean, mean, scale, weights, biases, standardised)
+    assert standardised.tobytes() == probabilities.tobytes()
+    assert not mlp_probabilities(np.array([[np.nan, 0.0]]), mean, scale, weights, biases, np.empty((1, 2)))

@@ -216,9 +216,10 @@ def test_energy_balance_deviation_points_at_a_stiffness_fault_without_noise():
     load = scenario.make_load().value(t)[None]
     windows = [monitor.update(measured[..., s : s + 101], expected[..., s : s + 101], load[:, s : s + 101]) for s in range(0, 4000, 100)]
     frame = monitor.frame(windows[10:])
-    from ea_gym.diagnosis.features import balance_deviation
+    from ea_gym.diagnosis.features import frame_features
 
-    beta = balance_deviation(frame.gram, frame.cross)[0]
+    E, C = frame.ea.shape[1], len(frame.component_index)
+    beta = frame_features(frame, "strong")[0, 3 * E + C : 3 * E + 2 * C]  # the strong variant's beta columns
     # components (m, k, b): k deviates by (95 - 100) / 100. The smoother's polynomial fit at each chunk's
     # trailing edge breaks the filtered signals' exact dynamics there, which leaks a little into m and b.
     assert beta[1] == pytest.approx(-0.05, abs=2e-3)

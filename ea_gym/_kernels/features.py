@@ -1,5 +1,6 @@
-"""The isolation features' compiled steps (``ea_gym.diagnosis.features``): a frame's EA sums read straight
-from the frame's rows (no copy of the frame), and the largest peaks of every spectrum.
+"""The isolation features' compiled steps (``ea_gym.diagnosis.features``): a frame's EA sums and balance
+system read straight from the frame's rows (no copy of the frame), and, after numpy's spectrum and
+solve, the largest peaks of every spectrum and the clipped deviations.
 
 Every sum is numpy's (:func:`~ea_gym._kernels.summation.numpy_sum`), so that the features equal the
 plain numpy form of their definition to the bit.
@@ -10,7 +11,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ea_gym._kernels.numpy_forms import numpy_maximum
+from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.numerics import TINY
 
@@ -23,26 +24,34 @@ def _relative(numerator: float, denominator: float) -> float:
 
 @numba.njit(cache=True, nogil=True)
 def frame_sums(
-    ea: np.ndarray, ea_reference: np.ndarray, rows: np.ndarray, inertia: int, components: np.ndarray, window: np.ndarray,
-    segment: np.ndarray, features: np.ndarray, scale: np.ndarray,
+    ea: np.ndarray, ea_reference: np.ndarray, gram: np.ndarray, cross: np.ndarray, noise: np.ndarray, rows: np.ndarray, inertia: int,
+    components: np.ndarray, window: np.ndarray, ridge: float, segment: np.ndarray, features: np.ndarray, scale: np.ndarray,
+    system: np.ndarray, right_side: np.ndarray,
 ) -> None:
-    """The EA sums of the frames of ``rows`` of ``ea`` and ``ea_reference`` (N, E, F) in J.
+    """The per-row arithmetic of the frames of ``rows`` before their spectrum and their balance regression:
+    ``ea`` and ``ea_reference`` (N, E, F) in J, the balance statistics ``gram`` (N, C, C) and ``cross``
+    (N, C), the relative noise levels ``noise`` (N, X).
 
     Writes, for the k-th row: segment[k] = the I element's residual (EA_real - EA_ref) per sub-window,
     its mean removed, times ``window`` (F,) (the spectrum's segment, as scipy's ``stft`` makes it);
     features[k, :3 E] = every element's relative residual over the frame, its first half and its
-    second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual; scale[k] =
-    the I element's mean reference EA per sub-window. Each row's numbers are its own: the rows may be
-    split over threads (the GIL released).
+    second half (each E wide); features[k, 3 E : 3 E + C] = the components' EAI residual;
+    features[k, 3 E + 2 C : 3 E + 2 C + X] = the noise levels; scale[k] = the I element's mean
+    reference EA per sub-window; system[k] = gram with (``ridge`` x its trace + TINY) added on the
+    diagonal, as numpy adds it (gram plus ridge trace times the identity, then TINY times the identity,
+    the off-diagonal zeros added too), and right_side[k, :, 0] = cross, the normal equations of the
+    balance's relative deviations. Each row's numbers are its own: the rows may be split over threads
+    (the GIL released).
     """
     E, F = ea.shape[1], ea.shape[2]
-    C = len(components)
+    C, X = len(components), noise.shape[1]
     half = F // 2
     # the sums read the frame in place: each element's sub-windows are contiguous (a window on the history's
     # backing array), which ascontiguousarray tells the compiled loops without a copy (they then vectorise)
     residual = np.empty(F)
     real_total, reference_total = np.empty(E), np.empty(E)
     ea_share, reference_share = np.empty(C), np.empty(C)
+    diagonal = np.empty(C)
     scratch = summation_scratch()
     for k in range(len(rows)):
         n = rows[k]
@@ -66,6 +75,16 @@ def frame_sums(
         ea_sum, reference_sum = numpy_sum(ea_share, 0, C, scratch), numpy_sum(reference_share, 0, C, scratch)
         for c in range(C):
             features[k, 3 * E + c] = _relative(ea_share[c], ea_sum) - _relative(reference_share[c], reference_sum)
+        for x in range(X):
+            features[k, 3 * E + 2 * C + x] = noise[n, x]
+        for c in range(C):
+            diagonal[c] = gram[n, c, c]
+        trace_ridge = ridge * numpy_sum(diagonal, 0, C, scratch)
+        for i in range(C):
+            for j in range(C):
+                identity = 1.0 if i == j else 0.0
+                system[k, i, j] = (gram[n, i, j] + trace_ridge * identity) + TINY * identity
+            right_side[k, i, 0] = cross[n, i]
 
 
 @numba.njit(cache=True)
@@ -117,19 +136,24 @@ def spectrum_peaks(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency
 
 
 @numba.njit(cache=True)
-def ridge_system(gram: np.ndarray, relative: float) -> np.ndarray:
-    """gram (M, C, C) with (relative x its trace + TINY) added on the diagonal, as numpy adds it: gram plus
-    ``relative`` trace times the identity, then TINY times the identity (the off-diagonal zeros added too)."""
-    M, C = gram.shape[0], gram.shape[1]
-    out = np.empty((M, C, C))
-    diagonal = np.empty(C)
-    scratch = summation_scratch()
+def peak_and_deviation_features(
+    magnitude: np.ndarray, scale: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float, deviation: np.ndarray,
+    limit: float, features: np.ndarray, deviation_column: int, peak_column: int,
+) -> np.ndarray:
+    """The features that follow the frames' spectra and balance regressions, M frames.
+
+    Divides each spectrum ``magnitude`` (M, P) by np.maximum(its ``scale`` (M,), TINY), in place, and
+    writes its largest peaks (:func:`spectrum_peaks`) to features[:, peak_column:]; writes the balance's
+    relative deviations ``deviation`` (M, C, 1) clipped to [-limit, limit] (np.clip's numbers) to
+    features[:, deviation_column : deviation_column + C]. Returns which spectra need scipy's rules for
+    plateaus and ties (M,).
+    """
+    M, P = magnitude.shape
+    C = deviation.shape[1]
     for k in range(M):
+        divisor = numpy_maximum(scale[k], TINY)
+        for p in range(P):
+            magnitude[k, p] = magnitude[k, p] / divisor
         for c in range(C):
-            diagonal[c] = gram[k, c, c]
-        ridge = relative * numpy_sum(diagonal, 0, C, scratch)
-        for i in range(C):
-            for j in range(C):
-                identity = 1.0 if i == j else 0.0
-                out[k, i, j] = (gram[k, i, j] + ridge * identity) + TINY * identity
-    return out
+            features[k, deviation_column + c] = numpy_minimum(numpy_maximum(deviation[k, c, 0], -limit), limit)
+    return spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, features[:, peak_column:])

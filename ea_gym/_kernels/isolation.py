@@ -19,21 +19,24 @@ from ea_gym.numerics import TINY
 
 @numba.njit(cache=True)
 def history_sums(
-    gram: np.ndarray, cross: np.ndarray, other: np.ndarray, rows: np.ndarray, span: int
+    gram: np.ndarray, cross: np.ndarray, other: np.ndarray, rows: np.ndarray, span: int, by_system: bool
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The sums over the last ``span`` steps of the history's gram (N, C, C, R) and cross (N, C, R), and over
-    every step of another history (N, X, V), for ``rows``: (M, C, C), (M, C), (M, X)."""
+    every step of another history (N, X, V), for ``rows``: (M, C, C), (M, C), (M, X); by system: at each
+    row's own system, (N, C, C), (N, C), (N, X), zeros for the systems not among ``rows``."""
     M, C, R, X = len(rows), gram.shape[1], gram.shape[-1], other.shape[1]
-    gram_sum, cross_sum, other_sum = np.empty((M, C, C)), np.empty((M, C)), np.empty((M, X))
+    size = gram.shape[0] if by_system else M
+    gram_sum, cross_sum, other_sum = np.zeros((size, C, C)), np.zeros((size, C)), np.zeros((size, X))
     scratch = summation_scratch()
     for k in range(M):
         n = rows[k]
+        at = n if by_system else k
         for i in range(C):
             for j in range(C):
-                gram_sum[k, i, j] = numpy_sum(gram[n, i, j], R - span, R, scratch)
-            cross_sum[k, i] = numpy_sum(cross[n, i], R - span, R, scratch)
+                gram_sum[at, i, j] = numpy_sum(gram[n, i, j], R - span, R, scratch)
+            cross_sum[at, i] = numpy_sum(cross[n, i], R - span, R, scratch)
         for x in range(X):
-            other_sum[k, x] = numpy_sum(other[n, x], 0, other.shape[2], scratch)
+            other_sum[at, x] = numpy_sum(other[n, x], 0, other.shape[2], scratch)
     return gram_sum, cross_sum, other_sum
 
 
@@ -199,12 +202,13 @@ def shifted_log_belief(
 
 @numba.njit(cache=True)
 def verdict(
-    belief: np.ndarray, believed: np.ndarray, previous: np.ndarray, estimated: np.ndarray, threshold: float
+    belief: np.ndarray, believed: np.ndarray, suspect: np.ndarray, sure: np.ndarray, estimated: np.ndarray, threshold: float
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The fused belief's verdict, N systems (``Fusion``): the normalised belief where ``believed`` ("none" = 1
     elsewhere) (N, K), the suspect (N,), its share of the fault classes' belief (N,), whether that share
-    reaches ``threshold`` (N,), and whether the suspect changed from ``previous`` to one the estimator did
-    not update (``estimated`` (N, K - 1)) (N,)."""
+    reaches ``threshold`` (N,), and the systems whose suspect changed from the previous ``suspect`` to one
+    the estimator did not update (``estimated`` (N, K - 1)), (M,). Stores the suspects in ``suspect``
+    (N,) and whether they are sure in ``sure`` (N,)."""
     N, K = belief.shape
     diagnosis = np.zeros((N, K))
     isolated = np.zeros(N, dtype=np.int64)
@@ -232,5 +236,6 @@ def verdict(
         if isolated[n] > 0:
             confidence[n] = share
             confident[n] = share >= threshold
-            restarted[n] = isolated[n] != previous[n] and not estimated[n, isolated[n] - 1]
-    return diagnosis, isolated, confidence, confident, restarted
+            restarted[n] = isolated[n] != suspect[n] and not estimated[n, isolated[n] - 1]
+        suspect[n], sure[n] = isolated[n], confident[n]
+    return diagnosis, isolated, confidence, confident, restarted.nonzero()[0]

@@ -14,19 +14,26 @@ import numpy as np
 
 
 @numba.njit(cache=True, nogil=True)
-def mlp_probabilities(inputs: np.ndarray, weights: tuple[np.ndarray, ...], biases: tuple[np.ndarray, ...], probabilities: np.ndarray) -> None:
+def mlp_probabilities(
+    inputs: np.ndarray, mean: np.ndarray, scale: np.ndarray, weights: tuple[np.ndarray, ...], biases: tuple[np.ndarray, ...],
+    probabilities: np.ndarray,
+) -> bool:
     """The softmax of a multilayer perceptron (tanh after every layer but the last) on each row of
-    ``inputs`` (n, F), written to ``probabilities`` (n, out of the last layer): ``weights[l]`` is layer
-    l's (in, out) matrix (torch's weight transposed), ``biases[l]`` its (out,) vector. The GIL is
-    released: parts of the rows may run on several threads at once."""
+    ``inputs`` (n, F) standardised ((inputs - mean) / scale, (F,) each, in numpy's arithmetic), written
+    to ``probabilities`` (n, out of the last layer): ``weights[l]`` is layer l's (in, out) matrix
+    (torch's weight transposed), ``biases[l]`` its (out,) vector. Returns whether every input is finite.
+    The GIL is released: parts of the rows may run on several threads at once."""
     layers = len(weights)
     width = inputs.shape[1]
     for layer in range(layers):
         width = max(width, weights[layer].shape[1])
     activation, unit = np.empty(width), np.empty(width)
+    finite = True
     for row in range(inputs.shape[0]):
         size = inputs.shape[1]
-        activation[:size] = inputs[row]
+        for i in range(size):
+            finite &= np.isfinite(inputs[row, i])
+            activation[i] = (inputs[row, i] - mean[i]) / scale[i]
         for layer in range(layers):
             weight, bias = weights[layer], biases[layer]
             units = weight.shape[1]
@@ -48,3 +55,4 @@ def mlp_probabilities(inputs: np.ndarray, weights: tuple[np.ndarray, ...], biase
             total += probabilities[row, j]
         for j in range(size):
             probabilities[row, j] /= total
+    return finite

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ea_gym._kernels.network import mlp_probabilities
 from ea_gym.diagnosis.features import VARIANTS
 from ea_gym.files import write_atomic
 from ea_gym.threads import over_rows, single_threaded_torch
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
 
 #: the first bytes of a zip archive, the container of ``torch.save``
 _ZIP_MAGIC = b"PK\x03\x04"
+_NOT_FINITE = "features contain NaN or inf"
 
 
 @dataclass(frozen=True)
@@ -108,12 +110,17 @@ class FaultClassifier:
                 self._weights = None
         return self._network
 
-    def _standardized(self, features: np.ndarray) -> np.ndarray:
+    def _checked(self, features: np.ndarray) -> np.ndarray:
+        """``features`` as float64, of shape (n, n_features)."""
         features = np.asarray(features, dtype=float)
         if features.ndim != 2 or features.shape[1] != self.n_features:
             raise ValueError(f"features must have shape (n, {self.n_features}), got {features.shape}")
+        return features
+
+    def _standardized(self, features: np.ndarray) -> np.ndarray:
+        features = self._checked(features)
         if not np.isfinite(features).all():
-            raise ValueError("features contain NaN or inf")
+            raise ValueError(_NOT_FINITE)
         return (features - self.mean) / self.scale
 
     def _inputs(self, features: np.ndarray) -> torch.Tensor:
@@ -174,16 +181,17 @@ class FaultClassifier:
         to the bit whatever rows come with it (a single environment's row and the same row in a batch),
         which torch's batched matrix product does not promise. Needs no torch for a network read from a
         file."""
-        from ea_gym._kernels.network import mlp_probabilities
-
         weights, biases = self._inference_layers()
-        inputs = self._standardized(features)
-        probabilities = np.empty((len(inputs), len(biases[-1])))
+        features = self._checked(features)
+        probabilities = np.empty((len(features), len(biases[-1])))
+        finite: list[bool] = []
 
         def rows_of_probabilities(start: int, stop: int) -> None:
-            mlp_probabilities(inputs[start:stop], weights, biases, probabilities[start:stop])
+            finite.append(mlp_probabilities(features[start:stop], self.mean, self.scale, weights, biases, probabilities[start:stop]))
 
-        over_rows(rows_of_probabilities, len(inputs))
+        over_rows(rows_of_probabilities, len(features))
+        if not all(finite):
+            raise ValueError(_NOT_FINITE)
         return probabilities
 
     def _inference_layers(self) -> tuple[tuple[np.ndarray, ...], tuple[np.ndarray, ...]]:

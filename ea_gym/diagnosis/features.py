@@ -20,13 +20,18 @@ from functools import cache, partial
 
 import numpy as np
 
-from ea_gym._kernels.features import frame_sums, ridge_system, spectrum_peaks
+from ea_gym._kernels.features import frame_sums, peak_and_deviation_features, spectrum_peaks
 from ea_gym.numerics import TINY
 from ea_gym.threads import over_rows
 
 N_PEAKS = 3
 #: the smallest peak kept, relative to the largest: the smaller ones are noise
 MIN_RELATIVE = 0.05
+#: the ridge on the balance regression's normal equations, relative to their trace: keeps beta finite
+#: where a component is barely excited
+BALANCE_RIDGE = 1e-9
+#: beta is clipped to [-BALANCE_LIMIT, BALANCE_LIMIT]
+BALANCE_LIMIT = 1.0
 VARIANTS = ("paper", "strong")
 
 
@@ -147,11 +152,17 @@ def spectral_peaks(
 def _peak_table(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float) -> np.ndarray:
     """``spectral_peaks`` of spectra (N, P) already divided by their scale."""
     out = np.empty((len(magnitude), 2 * N_PEAKS))
-    tied = spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, out)
-    # a flat top (equal neighbours) or equal peaks: scipy's plateau rule and its sort's order decide, row by row
+    _break_ties(spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, out), magnitude, frequencies, max_frequency, min_relative, out)
+    return out
+
+
+def _break_ties(
+    tied: np.ndarray, magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float, out: np.ndarray
+) -> None:
+    """A flat top (equal neighbours) or equal peaks in the spectra (N, P) where ``tied`` (N,): scipy's plateau rule
+    and its sort's order decide their peaks in ``out`` (N, 2 N_PEAKS), row by row."""
     for row in tied.nonzero()[0]:
         out[row] = _peaks_of(magnitude[row], frequencies, max_frequency, min_relative)
-    return out
 
 
 def _peaks_of(spectrum: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float) -> np.ndarray:
@@ -170,41 +181,43 @@ def _peaks_of(spectrum: np.ndarray, frequencies: np.ndarray, max_frequency: floa
     return out
 
 
-def balance_deviation(gram: np.ndarray, cross: np.ndarray, limit: float = 1.0) -> np.ndarray:
-    """Least-squares beta of the power-balance residual on the component powers, clipped to [-limit, limit].
-
-    beta_i estimates the relative deviation of component i's constitutive coefficient; a small ridge
-    keeps it finite when a component is barely excited. gram (M, C, C), cross (M, C); returns (M, C).
-    """
-    beta = np.linalg.solve(ridge_system(gram, 1e-9), cross[..., None])[..., 0]
-    return np.clip(beta, -limit, limit)
-
-
 def frame_features(frame: Frame, variant: str, max_frequency: float = 2.0, rows: np.ndarray | None = None) -> np.ndarray:
     """Feature vectors (M, n_features) of one variant for the frames of ``rows`` (indices into the frame's
-    systems; None: all of them). The frame's arrays are read in place: a frame may hold many systems."""
+    systems; None: all of them). The frame's arrays are read in place: a frame may hold many systems.
+
+    The strong variant's beta is the least-squares fit of the power-balance residual on the component
+    powers, clipped to [-BALANCE_LIMIT, BALANCE_LIMIT]: beta_i estimates the relative deviation of
+    component i's constitutive coefficient; a small ridge (``BALANCE_RIDGE``) keeps it finite when a
+    component is barely excited.
+    """
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
     rows = np.arange(len(frame.ea)) if rows is None else rows
-    E, F = frame.ea.shape[1:]
-    segment = np.empty((len(rows), F))
-    sums = np.empty((len(rows), 3 * E + len(frame.component_index)))
-    reference_mean = np.empty(len(rows))
+    M, (E, F), C = len(rows), frame.ea.shape[1:], len(frame.component_index)
+    # the strong variant's columns: the EA sums (3 E + C), beta (C), the noise levels, the peaks
+    peak_column = 3 * E + 2 * C + frame.noise.shape[1]
+    features = np.empty((M, peak_column + 2 * N_PEAKS))
+    segment, reference_mean = np.empty((M, F)), np.empty(M)
+    system, right_side = np.empty((M, C, C)), np.empty((M, C, 1))
     window = hann_window(F)
 
     def sum_rows(start: int, stop: int) -> None:
-        # every element's relative residual over the frame and its halves, the components' EAI residual, and
-        # the I element's residual as the spectrum's one segment (spectral_peaks' arithmetic, read in place)
+        # every element's relative residual over the frame and its halves, the components' EAI residual, the
+        # I element's residual as the spectrum's one segment (spectral_peaks' arithmetic) and the balance's
+        # normal equations, read in place
         part = slice(start, stop)
         frame_sums(
-            frame.ea, frame.ea_reference, rows[part], frame.inertia_index, frame.component_index, window, segment[part], sums[part],
-            reference_mean[part],
+            frame.ea, frame.ea_reference, frame.gram, frame.cross, frame.noise, rows[part], frame.inertia_index, frame.component_index,
+            window, BALANCE_RIDGE, segment[part], features[part], reference_mean[part], system[part], right_side[part],
         )
 
-    over_rows(sum_rows, len(rows))
-    magnitude = _magnitude(segment) / np.maximum(reference_mean, TINY)[:, None]
-    peaks = _peak_table(magnitude, _frequencies(F, 1.0 / frame.sub_window), max_frequency, MIN_RELATIVE)
-    if variant == "paper":
-        return peaks
-    beta = balance_deviation(frame.gram[rows], frame.cross[rows])
-    return np.concatenate([sums, beta, frame.noise[rows], peaks], axis=-1)
+    over_rows(sum_rows, M)
+    magnitude = _magnitude(segment)
+    frequencies = _frequencies(F, 1.0 / frame.sub_window)
+    tied = peak_and_deviation_features(
+        magnitude, reference_mean, frequencies, max_frequency, MIN_RELATIVE, np.linalg.solve(system, right_side), BALANCE_LIMIT, features,
+        3 * E + C, peak_column,
+    )
+    peaks = features[:, peak_column:]
+    _break_ties(tied, magnitude, frequencies, max_frequency, MIN_RELATIVE, peaks)
+    return np.ascontiguousarray(peaks) if variant == "paper" else features

@@ -179,10 +179,8 @@ class Isolation:
             # the frame of every system, read in place from the history, its sums those of the counted ones (the
             # others' are zero: their features are not read)
             n, _, states, steps = history.noise.shape
-            components = history.gram.shape[1]
-            gram, cross, noise = np.zeros((n, components, components)), np.zeros((n, components)), np.zeros((n, 2 * states))
             noise_sums = history.noise.reshape(n, 2 * states, steps)
-            gram[counted], cross[counted], noise[counted] = history_sums(history.gram, history.cross, noise_sums, counted, self.frame_steps)
+            gram, cross, noise = history_sums(history.gram, history.cross, noise_sums, counted, self.frame_steps, True)
             frame = self.monitor.frame_of(history.ea, history.ea_reference, gram, cross, noise.reshape(n, 2, states))
             features = frame_features(frame, self.classifier.variant, self.monitor.model.excitation_bandwidth, counted)
             predicted = self.classifier.predict_proba(features)
@@ -196,7 +194,7 @@ class Isolation:
         if len(rows) == 0:
             return np.zeros((self.n, len(self.classes)))
         span = self.evidence_steps
-        gram, cross, square = history_sums(history.gram, history.cross, history.balance_square[:, None], rows, span)
+        gram, cross, square = history_sums(history.gram, history.cross, history.balance_square[:, None], rows, span, False)
         # the residual's noise is correlated across windows (the smoothing filter spans several), so
         # the regression's own variance understates it: chi-squares are deflated by a calibrated factor
         return balance_log_ratios(
@@ -219,8 +217,6 @@ class Isolation:
         # the alarm already says there is a fault: confidence is the suspect's share among the fault
         # classes; a new suspect not estimated at this step has stale estimates: the estimator restarts it
         diagnosis, isolated, confidence, confident, restarted = verdict(
-            belief, believed, s.isolated, estimated, self.config.isolation_confidence
+            belief, believed, s.isolated, s.confident, estimated, self.config.isolation_confidence
         )
-        s.isolated[:] = isolated
-        s.confident[:] = confident
-        return Fusion(belief=diagnosis, isolated=isolated, confidence=confidence, confident=confident, restarted=restarted.nonzero()[0])
+        return Fusion(belief=diagnosis, isolated=isolated, confidence=confidence, confident=confident, restarted=restarted)
