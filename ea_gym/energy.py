@@ -15,7 +15,7 @@ from typing import Literal, TypeVar, overload
 
 import numpy as np
 
-from ea_gym._kernels.activity import component_shares, interval_activities
+from ea_gym._kernels.activity import component_shares, interval_activities, summed_shares
 from ea_gym.bondgraph.elements import CForm, Kind
 
 Signals = TypeVar("Signals", np.ndarray, Mapping[str, np.ndarray])
@@ -173,6 +173,20 @@ def component_activity_index(ea: np.ndarray, columns: np.ndarray, names: Sequenc
     if component_shares(np.asarray(ea, dtype=float), np.asarray(columns, dtype=np.intp), shares) >= 0:
         activity_shares(np.ascontiguousarray(ea.T[columns]), names)  # raises, naming the component
     return shares
+
+
+def step_activity_index(
+    sub_ea: np.ndarray, sub_ea_reference: np.ndarray, columns: np.ndarray, names: Sequence[str]
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Every element's EA (J) over a step, (N, E), from its sub-windows' ``sub_ea`` (N, E, S), the same of the
+    reference ``sub_ea_reference``, and the ``component_activity_index`` of each (components ``names`` at
+    ``columns``), (N, C): in one compiled pass, the numbers of ``sub_ea.sum(-1)`` and of
+    ``component_activity_index`` of both sums' rows stacked."""
+    n = len(sub_ea)
+    ea, shares = np.empty((2 * n, sub_ea.shape[1])), np.empty((2 * n, len(columns)))
+    if summed_shares(sub_ea, sub_ea_reference, columns, ea, shares) >= 0:
+        activity_shares(np.ascontiguousarray(ea.T[columns]), names)  # raises, naming the component
+    return ea[:n], ea[n:], shares[:n], shares[n:]
 
 
 @dataclass(frozen=True)

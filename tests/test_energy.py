@@ -13,6 +13,7 @@ from ea_gym.energy import (
     constitutive_power,
     cumulative_energy_activity,
     energy_activity,
+    step_activity_index,
     window_samples,
 )
 from ea_gym.loads import Sine, SinesLoad
@@ -336,3 +337,24 @@ def test_streaming_one_sample_at_a_time():
     completed = [i for i, out in enumerate(outputs) if out.shape[-1]]
     assert completed == [4, 8, 12, 16, 20, 24, 28, 32, 36, 40]
     assert np.array_equal(np.concatenate(outputs, axis=-1), energy_activity(P, 0.25, window=1.0))
+
+
+@pytest.mark.parametrize("n", [1, 4])
+def test_step_activity_index_is_its_numpy_form_to_the_bit(n):
+    # the sub-windows summed as np.sum adds them (pairwise from eight on), then the shares of both sums' rows stacked
+    rng = np.random.default_rng(n)
+    for subs, components in ((1, 3), (5, 3), (9, 8), (140, 9)):
+        elements = components + 2
+        shape = (n, elements, subs)
+        sub_ea, sub_ea_reference = (np.abs(rng.normal(size=shape)) * 10.0 ** rng.integers(-5, 5, size=shape) for _ in range(2))
+        sub_ea[0, :, :] = 0.0  # no activity: an even share
+        columns = rng.permutation(elements)[:components]
+        names = [f"c{k}" for k in range(components)]
+        ea, ea_reference = sub_ea.sum(-1), sub_ea_reference.sum(-1)
+        shares = component_activity_index(np.concatenate([ea, ea_reference]), columns, names)
+        got = step_activity_index(sub_ea, sub_ea_reference, columns, names)
+        for value, expected in zip(got, (ea, ea_reference, shares[:n], shares[n:])):
+            np.testing.assert_array_equal(value.view(np.int64), expected.view(np.int64))
+    sub_ea_reference[-1, columns[1], 0] = np.nan
+    with pytest.raises(ValueError, match="'c1'"):
+        step_activity_index(sub_ea, sub_ea_reference, columns, names)

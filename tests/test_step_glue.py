@@ -4,7 +4,7 @@ its compiled bookkeeping is its numpy form."""
 import numpy as np
 import pytest
 
-from ea_gym._kernels.ledger import close_step, outside_limits
+from ea_gym._kernels.ledger import close_step, outside_limits, take_orders
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
 
 
@@ -31,6 +31,19 @@ def test_observations_are_fresh_arrays_and_idle_outputs_stay_unchanged():
             np.testing.assert_array_equal(observation[key], snapshot[key])
     for key, value in core.observer.idle.items():
         np.testing.assert_array_equal(value, idle[key])
+
+
+@pytest.mark.parametrize("dtype", [np.int64, np.int32, np.uint8, np.uint64])
+def test_orders_are_the_actions_of_the_machines_up_and_refuse_any_out_of_range(dtype):
+    rng = np.random.default_rng(0)
+    actions, down = rng.integers(0, 7, 30).astype(dtype), rng.integers(0, 3, 30)
+    orders = np.empty_like(actions)
+    assert take_orders(actions, 7, down, orders)
+    expected = np.where(down > 0, 0, actions)
+    np.testing.assert_array_equal(orders, expected)
+    assert orders.dtype == expected.dtype
+    for bad in ([7], [-1] if np.dtype(dtype).kind == "i" else [255]):
+        assert not take_orders(np.array([0, *bad], dtype=dtype), 7, np.zeros(2, dtype=int), np.empty(2, dtype=dtype))
 
 
 def test_failure_check_is_its_numpy_form():

@@ -3,7 +3,8 @@
 Every EA in ea_gym is made of ``trapezoid_area``: the batch and streaming EA of ``ea_gym.energy`` from
 ``interval_activities``, the estimator's window sums from ``trapezoid_activity``, and the monitor's
 sub-window sums from ``trapezoid_area`` itself, in the loop that also sums the signed energy. The
-Energy Activity Index (eq 5) of components, their shares of their summed EA: ``component_shares``.
+Energy Activity Index (eq 5) of components, their shares of their summed EA: ``component_shares``; of
+a step's sub-window EAs summed first: ``summed_shares``.
 """
 
 from __future__ import annotations
@@ -67,3 +68,17 @@ def component_shares(ea: np.ndarray, columns: np.ndarray, out: np.ndarray) -> in
         for k in range(components):
             out[r, k] = ea[r, columns[k]] / total if total > 0.0 else 1.0 / components
     return -1
+
+
+@numba.njit(cache=True)
+def summed_shares(sub_ea: np.ndarray, sub_ea_reference: np.ndarray, columns: np.ndarray, ea: np.ndarray, out: np.ndarray) -> int:
+    """Every element's EA (J) over a step of N systems into ``ea`` (2N, E): the rows of ``sub_ea`` then those of
+    ``sub_ea_reference`` (N, E, S) summed over their S sub-windows as ``np.sum(axis=-1)`` adds them; then the
+    ``component_shares`` of its rows into ``out`` (2N, C), and what those return."""
+    n, elements, subs = sub_ea.shape
+    scratch = summation_scratch()
+    for i in range(n):
+        for j in range(elements):
+            ea[i, j] = numpy_sum(sub_ea[i, j], 0, subs, scratch)
+            ea[n + i, j] = numpy_sum(sub_ea_reference[i, j], 0, subs, scratch)
+    return component_shares(ea, columns, out)

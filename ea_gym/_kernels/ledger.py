@@ -1,5 +1,5 @@
 """The maintenance step's bookkeeping over N systems (``ea_gym.env.core.MaintenanceCore``) in compiled
-loops: the failure check and the step's close, each in one pass where their numpy forms take a dozen small
+loops: the orders, the failure check and the step's close, each in one pass where their numpy forms take a dozen small
 array operations, with the same comparisons and additions in the same order, so to the bit.
 """
 
@@ -7,6 +7,17 @@ from __future__ import annotations
 
 import numba
 import numpy as np
+
+
+@numba.njit(cache=True)
+def take_orders(actions: np.ndarray, n_actions: int, down: np.ndarray, orders: np.ndarray) -> bool:
+    """The step's orders of N systems into ``orders`` (N,): ``np.where(down > 0, 0, actions)`` (a machine that
+    is down takes none); False, ``orders`` unfinished, where an action is outside [0, n_actions)."""
+    for i in range(actions.shape[0]):
+        if actions[i] < 0 or actions[i] >= n_actions:
+            return False
+        orders[i] = 0 if down[i] > 0 else actions[i]
+    return True
 
 
 @numba.njit(cache=True)

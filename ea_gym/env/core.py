@@ -14,7 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ea_gym._kernels.ledger import close_step, outside_limits
+from ea_gym._kernels.ledger import close_step, outside_limits, take_orders
 from ea_gym.degradation import Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
@@ -157,14 +157,14 @@ class MaintenanceCore:
     def _step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
         actions = np.asarray(actions)
         n_actions = len(self.actions)
-        if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or actions.min() < 0 or actions.max() >= n_actions:
+        orders = np.empty_like(actions)
+        if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or not take_orders(actions, n_actions, self._down, orders):
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
         dt = self.config.step_seconds
         items = np.zeros((len(COST_ITEMS), self.n))  # one row per cost item, the total last
         costs = dict(zip(COST_ITEMS, items))
         events: list[list[Event]] = [[] for _ in range(self.n)]
-        actions = np.where(self._down > 0, 0, actions)  # a machine under replacement takes no orders
-        maintained = self._maintain(actions, rngs, costs, events)
+        maintained = self._maintain(orders, rngs, costs, events)  # a machine under replacement took no orders
 
         running = self._down == 0
         self.degradation.advance(self._theta, running, self._clock, dt, rngs)

@@ -51,7 +51,7 @@ class StepInfo:
     def system(self, i: int) -> dict[str, Any]:
         """The ``info`` of system i."""
         return {
-            "true_parameters": dict(zip(self.parameter_names, map(float, self.true_parameters[i]))),
+            "true_parameters": dict(zip(self.parameter_names, self.true_parameters[i].tolist())),
             "true_rul": float(self.true_rul[i]),
             "cost": {key: float(value[i]) for key, value in self.costs.items()},
             "failed": bool(self.failed[i]),

@@ -70,6 +70,8 @@ class Observer:
         ends = np.cumsum(list(widths.values())).tolist()
         self._columns = [(key, slice(end - width, end)) for (key, width), end in zip(widths.items(), ends)]
         self._width = ends[-1]
+        # the kernel's bounds: the RUL's and the time since maintenance's, the residual's floor, the positions', every value's
+        self._bounds = (float(config.rul_max), float(self.longest_run), RESIDUAL_FLOOR, *PARAMETER_POSITION_BOUNDS, OBSERVATION_BOUND)
 
     def space(self) -> spaces.Dict:
         """The Dict observation space of one system."""
@@ -134,6 +136,6 @@ class Observer:
         observation = np.empty((self.n, self._width), np.float32)
         observation_rows(
             merged["ea"], merged["ea_reference"], merged["eai"], since_maintenance, down, diagnosis, values, self._low, self._span, rul,
-            float(config.rul_max), float(self.longest_run), RESIDUAL_FLOOR, *PARAMETER_POSITION_BOUNDS, OBSERVATION_BOUND, observation,
+            *self._bounds, observation,
         )
         return {key: observation[:, columns] for key, columns in self._columns}

@@ -17,8 +17,8 @@ import numpy as np
 
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
-from ea_gym.diagnosis.monitor import Monitor
-from ea_gym.energy import component_activity_index, window_samples
+from ea_gym.diagnosis.monitor import Monitor, MonitorWindow
+from ea_gym.energy import step_activity_index, window_samples
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import Detector
@@ -173,8 +173,7 @@ class PHMChain:
         fusion = self.isolation.fuse(alarm, estimates.log_evidence, estimates.estimated, self.isolation.balance_evidence(history, alarm))
         self.estimator.restart(fusion.restarted, fusion.isolated[fusion.restarted] - 1)
         prognosis = self.prognosis.update(estimates, fusion.isolated, fusion.confident, history.time)
-        ea, ea_ref = window.ea.sum(-1), window.ea_reference.sum(-1)
-        eai, eai_ref = self._activity_index(ea, ea_ref)
+        ea, ea_ref, eai, eai_ref = self._activity_index(window)
         return HealthStatus(
             t=history.time.copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, sub_residual=window.ea - window.ea_reference,
             eai=eai, eai_reference=eai_ref, statistic=statistic, alarm=alarm.copy(),
@@ -185,10 +184,9 @@ class PHMChain:
             end_of_life=prognosis.end_of_life,
         )
 
-    def _activity_index(self, ea: np.ndarray, ea_reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """EAI of every component, (N, C), from every element's real and reference EA over the step (N, E), in one pass."""
-        shares = component_activity_index(np.concatenate([ea, ea_reference]), self.monitor.component_index, self.monitor.components)
-        return shares[: self.n], shares[self.n :]
+    def _activity_index(self, window: MonitorWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Every element's real and reference EA over the step (N, E) and the EAI of every component of each (N, C)."""
+        return step_activity_index(window.ea, window.ea_reference, self.monitor.component_index, self.monitor.components)
 
     @property
     def statistic_names(self) -> tuple[str, ...]:
