@@ -103,6 +103,24 @@ def test_update_is_the_same_on_one_kernel_thread_and_on_two():
         set_kernel_threads(previous)
 
 
+def test_a_systems_window_does_not_depend_on_its_batch():
+    """A system alone, and the same system in batches whose filters run more signals side by side (fewer
+    than the lanes, several groups of them, loads shared or not), gets the same bits."""
+    model = spring_mass_damper()
+    rng = np.random.default_rng(6)
+    nx, L = len(model.state_names), 100
+    for n in (1, 3, 40):
+        measured, reference = rng.standard_normal((2, n, nx, L + 1))
+        load = rng.standard_normal((n, L + 1))
+        load[n // 2 :] = load[0]
+        batch = Monitor(model, 0.01, n_systems=n)
+        alone = Monitor(model, 0.01)
+        for _ in range(2):
+            windows = batch.update(measured, reference, load), alone.update(measured[-1:], reference[-1:], load[-1:])
+            for name in ("ea", "ea_reference", "gram", "cross", "balance", "signals", "noise"):
+                np.testing.assert_array_equal(getattr(windows[0], name)[-1:], getattr(windows[1], name), err_msg=name)
+
+
 def test_powers_and_signature_match_numpy_for_shared_and_distinct_loads():
     model = spring_mass_damper()
     monitor = Monitor(model, 0.01)

@@ -72,35 +72,43 @@ def smooth_rows(
     # the candidates of one system, and a system's real and reference rows, share the source's
     # signal: each distinct one is filtered once
     source, distinct = load_sources(rows, load, skip)
-    every = np.arange(M)
-    # LANES rows of one channel side by side, time first: the filter's recursion runs across them in
-    # SIMD; the lanes past the last row filter stale signals, whose outputs are discarded
-    x = np.zeros((length, LANES))
-    filtered = np.empty((length, LANES))
-    derivative = np.empty((length, LANES))
-    for c in range(channels):
-        members = distinct if c == load else every
-        k = -1
-        for i in range(len(inertia)):
-            if int(inertia[i, 0]) == c:
-                k = i
-        for g0 in range(0, len(members), LANES):
-            lanes = min(LANES, len(members) - g0)
-            # the copies indexed by unsigned offsets: a signed index costs a negative-index check at every access
-            for b in range(lanes):
-                signal, lane = rows[members[g0 + b], c, skip:], np.uint64(b)
-                for t in range(length):
-                    x[np.uint64(t), lane] = signal[np.uint64(t)]
-            filter_lanes(x, cut, moments, smoother, differentiator, k >= 0, filtered, derivative)
-            for b in range(lanes):
-                m, lane = members[g0 + b], np.uint64(b)
-                out = smooth[m, c]
+    # the signals to filter, channel after channel: every row's measured ones, then the distinct loads
+    signals = np.empty((M * load + len(distinct), 2), dtype=np.int64)
+    for c in range(load):
+        for m in range(M):
+            signals[c * M + m, 0], signals[c * M + m, 1] = m, c
+    for i in range(len(distinct)):
+        signals[M * load + i, 0], signals[M * load + i, 1] = distinct[i], load
+    differentiated = np.full(channels, -1)  # each channel's I element (index into ``inertia``), -1: none
+    for i in range(len(inertia)):
+        differentiated[int(inertia[i, 0])] = i
+    # LANES signals side by side (as many as there are, where fewer), time first: the filter's recursion
+    # runs across them in SIMD; the lanes past the last signal filter stale ones, whose outputs are discarded
+    width = min(LANES, len(signals))
+    x = np.zeros((length, width))
+    filtered = np.empty((length, width))
+    derivative = np.empty((length, width))
+    for g0 in range(0, len(signals), width):
+        lanes = min(width, len(signals) - g0)
+        differentiate = False
+        # the copies indexed by unsigned offsets: a signed index costs a negative-index check at every access
+        for b in range(lanes):
+            m, c = signals[g0 + b]
+            signal, lane = rows[m, c, skip:], np.uint64(b)
+            for t in range(length):
+                x[np.uint64(t), lane] = signal[np.uint64(t)]
+            differentiate |= differentiated[c] >= 0
+        filter_lanes(x, cut, moments, smoother, differentiator, differentiate, filtered, derivative)
+        for b in range(lanes):
+            m, c = signals[g0 + b]
+            lane = np.uint64(b)
+            out = smooth[m, c]
+            for t in range(length - cut):
+                out[np.uint64(t)] = filtered[np.uint64(cut + t), lane]
+            if differentiated[c] >= 0:
+                out = slope[m, differentiated[c]]
                 for t in range(length - cut):
-                    out[np.uint64(t)] = filtered[np.uint64(cut + t), lane]
-                if k >= 0:
-                    out = slope[m, k]
-                    for t in range(length - cut):
-                        out[np.uint64(t)] = derivative[np.uint64(cut + t), lane]
+                    out[np.uint64(t)] = derivative[np.uint64(cut + t), lane]
     for m in range(M):
         if source[m] != m:
             copy(smooth[source[m], load], 0, smooth[m, load], 0)

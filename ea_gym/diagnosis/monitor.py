@@ -226,7 +226,8 @@ class Monitor:
         # the filter's outputs at the chunk's samples reach half a window before it: so much context
         if self._context is None:
             self._context = np.full((2 * n, nx + 1, half), np.nan)
-        measured, reference, load = (np.ascontiguousarray(x, dtype=float) for x in (measured, reference, load))
+        measured, reference = np.ascontiguousarray(measured, dtype=float), np.ascontiguousarray(reference, dtype=float)
+        load = np.ascontiguousarray(load, dtype=float)
         subs = (T - 1) // self.n_sub
         balances, C = subs // self.n_balance, len(self.components)
         ea = np.empty((2 * n, len(self.elements), subs))
