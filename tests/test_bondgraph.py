@@ -382,3 +382,12 @@ def test_junction_that_nothing_drives_is_rejected_by_name():
     g.connect("Q", "a").connect("a", "b").connect("b", "a").connect("b", "m")
     with pytest.raises(BondGraphError, match=r"0-junction 'a' has no bond that imposes its effort"):
         assign_causality(g)
+
+
+@pytest.mark.parametrize("name", ["spring_mass_damper", "rlc_circuit", "dc_motor"])
+def test_the_state_equation_is_the_state_derivative_map_times_each_output_map_to_the_bit(name):
+    """A and B come out of one product of S with [Cy | Dy]: the same bits as S @ Cy and S @ Dy apart."""
+    model = models.get_model(name)
+    ss = model.state_space
+    mats = ss.matrices(model.parameter_vector() * np.random.default_rng(3).uniform(0.5, 2.0, (6, len(ss.parameter_names))))
+    assert mats.A.tobytes() == (ss._S @ mats.Cy).tobytes() and mats.B.tobytes() == (ss._S @ mats.Dy).tobytes()

@@ -88,6 +88,7 @@ class StateSpaceModel:
         assert equations.row == 2 * n, "every bond end contributes exactly one equation"
         self._M0 = equations.M0
         self._P = equations.P
+        self._rhs0 = np.concatenate([np.zeros((2 * n, len(self.state_names))), self._P], axis=1)  # [N | P] before the entries
         self._entries = tuple(equations.entries)
         self._S = self._state_derivative_map()
 
@@ -178,10 +179,9 @@ class StateSpaceModel:
         nx = len(self.state_names)
         M = np.empty(batch + self._M0.shape)
         M[...] = self._M0
-        rhs = np.empty(batch + (2 * self.n_bonds, nx + self._P.shape[1]))  # [N | P]
+        rhs = np.empty(batch + self._rhs0.shape)  # [N | P]
+        rhs[...] = self._rhs0
         N = rhs[..., :nx]
-        N[...] = 0.0
-        rhs[..., nx:] = self._P
         for entry in self._entries:
             value = theta[..., entry.parameter]
             coefficient = entry.scale / value if entry.reciprocal else entry.scale * value
@@ -194,8 +194,9 @@ class StateSpaceModel:
                 "the bond-graph equations are singular for these parameters (an ill-posed algebraic loop "
                 f"through {list(self.causality.algebraic_loop)})"
             ) from None
-        Cy, Dy = X[..., :nx], X[..., nx:]
-        return LinearMatrices(A=self._S @ Cy, B=self._S @ Dy, Cy=Cy, Dy=Dy)
+        # one product for both: S selects (entries 0 and +-1, one nonzero per row), so each entry is exact in any order
+        AB = self._S @ X
+        return LinearMatrices(A=AB[..., :nx], B=AB[..., nx:], Cy=X[..., :nx], Dy=X[..., nx:])
 
     def element_bonds(self) -> tuple[tuple[str, ...], np.ndarray, np.ndarray, np.ndarray]:
         """Where every non-junction element's effort and flow sit among the bond values (..., 2 n_bonds).

@@ -20,6 +20,7 @@ from numpy.polynomial import chebyshev
 
 from ea_gym._kernels.expm import expm_batch, held_input_discretization
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
+from ea_gym._kernels.rows import changed_rows, replace_rows
 from ea_gym.bondgraph.equations import StateSpaceModel
 from ea_gym.threads import over_rows, single_threaded_blas
 
@@ -350,8 +351,6 @@ class RowDiscretizations:
 
     def update(self, model: StateSpaceModel, sample_period: float, theta: np.ndarray) -> Discretization:
         """The discretization of every row of ``theta`` (N, P): Phi (N, nx, nx) and Gamma (N, nx, HOLD_ORDER nu)."""
-        from ea_gym._kernels.rows import changed_rows, replace_rows
-
         if self._key != (model, sample_period) or self._rows.shape != theta.shape:
             n, nx = len(theta), model.n_states
             self._key, self._rows = None, np.empty(theta.shape)  # valid once every row is computed
