@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.signal import find_peaks
 
-from ea_gym._kernels.features import spectrum_peaks
+from ea_gym._kernels.features import relative_noise, spectrum_peaks
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 from ea_gym.diagnosis.features import N_PEAKS, VARIANTS, Frame, frame_features, residual_spectrogram, spectral_peaks
 from ea_gym.numerics import TINY
@@ -153,3 +153,11 @@ def test_spectrum_peaks_flag_equal_neighbours_and_equal_peaks():
     tied = spectrum_peaks(magnitude, frequencies, 2.0, 0.05, out)
     assert list(tied) == [False, True, True]
     np.testing.assert_array_equal(out[0], [0.5, 3, 1.5, 2, 0, 0])  # the third is above max_frequency
+
+
+def test_relative_noise_is_numpys_ratio_of_the_sums():
+    noise = np.random.default_rng(9).uniform(0.0, 2.0, (5, 2, 3)) ** 3
+    noise[1, 1] = 0.0  # no signal: the floor
+    noise[2] = 0.0
+    expected = np.sqrt(noise[:, 0] / np.maximum(noise[:, 1], TINY))
+    assert relative_noise(noise).tobytes() == expected.tobytes()

@@ -3,7 +3,14 @@ chi-square (``np.linalg.pinv``, ``np.sum``) and the fusion of the evidence."""
 
 import numpy as np
 
-from ea_gym._kernels.isolation import balance_log_ratios, chi_squares, history_sums, network_average, pseudo_inverse_factors
+from ea_gym._kernels.isolation import (
+    balance_log_ratios,
+    chi_squares,
+    history_sums,
+    network_average,
+    pseudo_inverse_factors,
+    suspect_hypotheses,
+)
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.models import spring_mass_damper
 from ea_gym.numerics import TINY
@@ -123,6 +130,15 @@ def test_network_average_moves_the_counted_systems_as_numpy_does():
     none[:, 0] = 1.0
     assert network_average(np.empty((0, 4)), np.array([], dtype=np.int64), 7, 0.3, average).tobytes() == none.tobytes()
     assert average.tobytes() == untouched.tobytes()
+
+
+def test_suspect_hypotheses_are_all_but_for_a_confident_systems_suspect():
+    confident = np.array([False, True, True, False, True])
+    isolated = np.array([2, 1, 3, 0, 2])
+    expected = np.where(confident[:, None], np.arange(3) == isolated[:, None] - 1, True)
+    got = suspect_hypotheses(confident, isolated, 3)
+    assert got.dtype == np.bool_ and np.array_equal(got, expected)
+    assert suspect_hypotheses(np.zeros(4, dtype=bool), np.zeros(4, dtype=int), 3).all()
 
 
 def fuse_by_definition(average, previous, floor, weights, threshold, alarm, log_evidence, estimated, balance):

@@ -88,6 +88,18 @@ def frame_sums(
 
 
 @numba.njit(cache=True)
+def relative_noise(noise: np.ndarray) -> np.ndarray:
+    """The relative noise level of each measured signal, (N, X), from the sums of the squares of its noise
+    and of the signal (N, 2, X): np.sqrt(noise[:, 0] / np.maximum(noise[:, 1], TINY))."""
+    N, X = noise.shape[0], noise.shape[2]
+    level = np.empty((N, X))
+    for n in range(N):
+        for x in range(X):
+            level[n, x] = np.sqrt(noise[n, 0, x] / numpy_maximum(noise[n, 1, x], TINY))
+    return level
+
+
+@numba.njit(cache=True)
 def spectrum_peaks(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float, out: np.ndarray) -> np.ndarray:
     """The largest peaks of every spectrum (M, P): out[k] = [f_1, a_1, f_2, a_2, ...] (zeros where missing).
 

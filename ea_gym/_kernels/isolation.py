@@ -138,6 +138,18 @@ def balance_log_ratios(
 
 
 @numba.njit(cache=True)
+def suspect_hypotheses(confident: np.ndarray, isolated: np.ndarray, parameters: int) -> np.ndarray:
+    """The hypotheses to estimate, (N, D = ``parameters``): every one for a system that is not ``confident`` (N,),
+    its suspect's alone (``isolated`` (N,) - 1) for one that is."""
+    hypotheses = np.ones((len(confident), parameters), dtype=np.bool_)
+    for n in range(len(confident)):
+        if confident[n]:
+            for d in range(parameters):
+                hypotheses[n, d] = d == isolated[n] - 1
+    return hypotheses
+
+
+@numba.njit(cache=True)
 def network_average(predicted: np.ndarray, counted: np.ndarray, n: int, weight: float, average: np.ndarray) -> np.ndarray:
     """The newest frame's class probabilities of n systems, (n, K): the network's ``predicted`` (M, K) for the
     ``counted`` systems (M,, distinct), "none" = 1 for the others. Moves each counted system's running

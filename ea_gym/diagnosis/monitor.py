@@ -23,13 +23,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ea_gym._kernels.features import relative_noise
 from ea_gym._kernels.monitor import element_powers, monitor_chunk, smooth_rows
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import Frame
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
 from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
-from ea_gym.numerics import TINY
 from ea_gym.threads import over_rows
 
 
@@ -267,7 +267,7 @@ class Monitor:
             ea_reference=ea_reference,
             gram=gram,
             cross=cross,
-            noise=np.sqrt(noise[:, 0] / np.maximum(noise[:, 1], TINY)),
+            noise=relative_noise(noise),
             sub_window=self.config.sub_window,
             component_index=self.component_index,
             inertia_index=self.inertia_index,

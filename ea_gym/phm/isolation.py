@@ -27,6 +27,7 @@ from ea_gym._kernels.isolation import (
     network_average,
     pseudo_inverse_factors,
     shifted_log_belief,
+    suspect_hypotheses,
     verdict,
 )
 from ea_gym.diagnosis.classifier import FaultClassifier
@@ -161,10 +162,7 @@ class Isolation:
     def suspects(self, parameters: int) -> np.ndarray:
         """The hypotheses to estimate at the next step, (N, D): every one until the isolation is confident of
         a suspect (so that a change of suspect finds a history), then the suspect alone."""
-        s = self.state
-        if not s.confident.any():
-            return np.ones((self.n, parameters), dtype=bool)
-        return np.where(s.confident[:, None], np.arange(parameters) == s.isolated[:, None] - 1, True)
+        return suspect_hypotheses(self.state.confident, self.state.isolated, parameters)
 
     def counted(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
         """The systems whose newest frame enters the network's average, (N,): alarm raised and a full frame seen."""
