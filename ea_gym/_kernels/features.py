@@ -157,8 +157,8 @@ def peak_and_deviation_features(
     Divides each spectrum ``magnitude`` (M, P) by np.maximum(its ``scale`` (M,), TINY), in place, and
     writes its largest peaks (:func:`spectrum_peaks`) to features[:, peak_column:]; writes the balance's
     relative deviations ``deviation`` (M, C, 1) clipped to [-limit, limit] (np.clip's numbers) to
-    features[:, deviation_column : deviation_column + C]. Returns which spectra need scipy's rules for
-    plateaus and ties (M,).
+    features[:, deviation_column : deviation_column + C]. Returns the spectra that need scipy's rules for
+    plateaus and ties (their indices).
     """
     M, P = magnitude.shape
     C = deviation.shape[1]
@@ -168,4 +168,4 @@ def peak_and_deviation_features(
             magnitude[k, p] = magnitude[k, p] / divisor
         for c in range(C):
             features[k, deviation_column + c] = numpy_minimum(numpy_maximum(deviation[k, c, 0], -limit), limit)
-    return spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, features[:, peak_column:])
+    return spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, features[:, peak_column:]).nonzero()[0]

@@ -152,16 +152,17 @@ def spectral_peaks(
 def _peak_table(magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float) -> np.ndarray:
     """``spectral_peaks`` of spectra (N, P) already divided by their scale."""
     out = np.empty((len(magnitude), 2 * N_PEAKS))
-    _break_ties(spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, out), magnitude, frequencies, max_frequency, min_relative, out)
+    tied = spectrum_peaks(magnitude, frequencies, max_frequency, min_relative, out).nonzero()[0]
+    _break_ties(tied, magnitude, frequencies, max_frequency, min_relative, out)
     return out
 
 
 def _break_ties(
     tied: np.ndarray, magnitude: np.ndarray, frequencies: np.ndarray, max_frequency: float, min_relative: float, out: np.ndarray
 ) -> None:
-    """A flat top (equal neighbours) or equal peaks in the spectra (N, P) where ``tied`` (N,): scipy's plateau rule
-    and its sort's order decide their peaks in ``out`` (N, 2 N_PEAKS), row by row."""
-    for row in tied.nonzero()[0]:
+    """A flat top (equal neighbours) or equal peaks in the spectra (N, P) of the rows ``tied`` (indices): scipy's
+    plateau rule and its sort's order decide their peaks in ``out`` (N, 2 N_PEAKS), row by row."""
+    for row in tied:
         out[row] = _peaks_of(magnitude[row], frequencies, max_frequency, min_relative)
 
 

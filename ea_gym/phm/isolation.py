@@ -172,8 +172,9 @@ class Isolation:
         """The newest frame's network class probabilities (N, K); updates their running average."""
         # isolation only matters once a fault is detected, and needs a full frame
         counted = self.counted(history, alarm).nonzero()[0]  # flatnonzero's indices, without its wrappers
-        predicted = np.empty((0, len(self.classes)))
-        if len(counted):
+        if len(counted) == 0:
+            predicted = np.empty((0, len(self.classes)))
+        else:
             # the frame of every system, read in place from the history, its sums those of the counted ones (the
             # others' are zero: their features are not read)
             n, _, states, steps = history.noise.shape
