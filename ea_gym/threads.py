@@ -13,21 +13,49 @@ the GIL (``nogil``); the waiting threads block on a queue, they do not spin.
 
 from __future__ import annotations
 
+import ctypes
+import itertools
 import os
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import AbstractContextManager, contextmanager
 from functools import cache
+from typing import NamedTuple
 
 import scipy.linalg  # noqa: F401 - loads scipy's BLAS so that the controller sees it
-from threadpoolctl import LibController, ThreadpoolController
+from threadpoolctl import ThreadpoolController
+
+#: how OpenBLAS names its C functions in the builds numpy's and scipy's wheels ship (prefix, suffix)
+_OPENBLAS_AFFIXES = tuple(itertools.product(("", "scipy_"), ("", "64_", "_64")))
+
+
+class _ThreadCount(NamedTuple):
+    """A BLAS library's thread count: read, and set."""
+
+    get: Callable[[], int]
+    set: Callable[[int], object]
 
 
 @cache
-def _blas_controllers() -> tuple[LibController, ...]:
-    """The BLAS libraries loaded (numpy's and scipy's), found once."""
-    return tuple(ThreadpoolController().select(user_api="blas").lib_controllers)
+def _blas_thread_counts() -> tuple[_ThreadCount, ...]:
+    """The thread count of each BLAS library loaded (numpy's and scipy's), found once: an OpenBLAS with its own
+    thread pool through its C functions (about 0.1 us a call; threadpoolctl's wrappers take several times that,
+    more again between the step's other work), any other library through threadpoolctl."""
+    counts = []
+    for library in ThreadpoolController().select(user_api="blas").lib_controllers:
+        own = _openblas_thread_count(library.dynlib) if library.internal_api == "openblas" and library.threading_layer == "pthreads" else None
+        counts.append(own or _ThreadCount(library.get_num_threads, library.set_num_threads))
+    return tuple(counts)
+
+
+def _openblas_thread_count(dynlib: ctypes.CDLL) -> _ThreadCount | None:
+    """OpenBLAS's own C functions for its thread count, under the names of the library's build (None: none found)."""
+    for prefix, suffix in _OPENBLAS_AFFIXES:
+        get, set_ = (f"{prefix}openblas_{verb}_num_threads{suffix}" for verb in ("get", "set"))
+        if hasattr(dynlib, get) and hasattr(dynlib, set_):
+            return _ThreadCount(dynlib[get], dynlib[set_])  # fresh function objects: threadpoolctl's stay as they are
+    return None
 
 
 class _OneBlasThread:
@@ -42,9 +70,9 @@ class _OneBlasThread:
         local = self.local
         depth = getattr(local, "depth", 0)
         if depth == 0:
-            changed = [(library, threads) for library in _blas_controllers() if (threads := library.num_threads) != 1]
-            for library, _ in changed:
-                library.set_num_threads(1)
+            changed = [(count, threads) for count in _blas_thread_counts() if (threads := count.get()) != 1]
+            for count, _ in changed:
+                count.set(1)
             local.changed = changed
         local.depth = depth + 1
 
@@ -52,18 +80,17 @@ class _OneBlasThread:
         local = self.local
         local.depth -= 1
         if local.depth == 0:
-            for library, threads in local.changed:
-                library.set_num_threads(threads)
+            for count, threads in local.changed:
+                count.set(threads)
 
 
 _one_blas_thread = _OneBlasThread()
 
 
 def single_threaded_blas() -> AbstractContextManager[None]:
-    """A context in which numpy's and scipy's BLAS use one thread (about 3 us to enter and leave: each
-    library's count is set directly, as ``threadpoolctl``'s limit sets it, without its bookkeeping, and
-    only where it is not one already; nothing to do within another, as the simulation's within an
-    environment step)."""
+    """A context in which numpy's and scipy's BLAS use one thread (about 1 us to enter and leave: each
+    library's count is set directly, without ``threadpoolctl``'s bookkeeping, and only where it is not one
+    already; nothing to do within another, as the simulation's within an environment step)."""
     return _one_blas_thread
 
 

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 import pytest
-from threadpoolctl import threadpool_info
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from ea_gym.threads import (
     MIN_ROWS_PER_PART,
@@ -22,8 +22,12 @@ from ea_gym.threads import (
 )
 
 
+def blas_pools() -> list[dict]:
+    return [pool for pool in threadpool_info() if pool["user_api"] == "blas"]
+
+
 def blas_threads() -> list[int]:
-    return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+    return [pool["num_threads"] for pool in blas_pools()]
 
 
 def test_nested_single_threaded_blas_holds_one_thread_until_the_outermost_exits() -> None:
@@ -33,6 +37,23 @@ def test_nested_single_threaded_blas_holds_one_thread_until_the_outermost_exits(
         with single_threaded_blas():
             assert set(blas_threads()) == {1}
         assert set(blas_threads()) == {1}  # the inner context leaves the outer's limit in place
+    assert blas_threads() == before
+
+
+def test_single_threaded_blas_restores_each_setting_the_user_made_between_contexts() -> None:
+    before = blas_threads()
+    try:
+        for threads in (2, 1, 3):  # the user's setting changes between two steps; one thread already: nothing to set
+            threadpool_limits(threads, user_api="blas")
+            with single_threaded_blas():
+                assert set(blas_threads()) == {1}
+            assert set(blas_threads()) == {threads}
+        threadpool_limits({info["filepath"]: threads for info, threads in zip(blas_pools(), (1, 2))})  # each library its own
+        with single_threaded_blas():
+            assert set(blas_threads()) == {1}
+        assert blas_threads() == [1, 2][: len(before)]
+    finally:
+        threadpool_limits({info["filepath"]: threads for info, threads in zip(blas_pools(), before)})
     assert blas_threads() == before
 
 
