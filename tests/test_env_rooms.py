@@ -137,6 +137,9 @@ def test_one_info_builder_for_single_and_vector_envs():
         assert info == vector.unwrapped.step_info.system(0)
         assert info["cost"] == {key: float(values[0]) for key, values in infos["cost"].items() if not key.startswith("_")}
         assert all(infos["cost"][f"_{key}"].all() for key in info["cost"])
+        # plain Python numbers, as json and users' comparisons expect them
+        assert type(info["true_rul"]) is float and type(info["failed"]) is bool
+        assert {type(value) for value in (*info["cost"].values(), *info["true_parameters"].values())} == {float}
 
 
 def test_core_public_accessors():

@@ -52,9 +52,9 @@ class StepInfo:
         """The ``info`` of system i."""
         return {
             "true_parameters": dict(zip(self.parameter_names, self.true_parameters[i].tolist())),
-            "true_rul": float(self.true_rul[i]),
-            "cost": {key: float(value[i]) for key, value in self.costs.items()},
-            "failed": bool(self.failed[i]),
+            "true_rul": self.true_rul.item(i),  # item: the Python float (bool) at once, no numpy scalar between
+            "cost": {key: value.item(i) for key, value in self.costs.items()},
+            "failed": self.failed.item(i),
             "events": [str(event) for event in self.events[i]],
         }
 
