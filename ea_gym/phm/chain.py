@@ -171,7 +171,8 @@ class PHMChain:
         suspects = self.isolation.suspects(len(self.degradable))
         estimates = self.estimator.update(StepSignals(measured=measured, load=load, load_rate=load_rate, t=history.time), alarm, suspects)
         fusion = self.isolation.fuse(alarm, estimates.log_evidence, estimates.estimated, self.isolation.balance_evidence(history, alarm))
-        self.estimator.restart(fusion.restarted, fusion.isolated[fusion.restarted] - 1)
+        if len(fusion.restarted):  # most steps none: nothing to tell the estimator
+            self.estimator.restart(fusion.restarted, fusion.isolated[fusion.restarted] - 1)
         prognosis = self.prognosis.update(estimates, fusion.isolated, fusion.confident, history.time)
         ea, ea_ref, eai, eai_ref = self._activity_index(window)
         return HealthStatus(
