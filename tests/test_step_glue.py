@@ -85,3 +85,39 @@ def test_step_close_is_its_numpy_form_to_the_bit(n, stop_at_failure):
                           (terminated, expected_terminated), (truncated, expected_truncated)]:
             np.testing.assert_array_equal(got, want)
             assert got.dtype == want.dtype
+
+
+def test_infos_and_health_statuses_of_earlier_steps_stay_as_they_were():
+    # the step's state lives in arrays updated in place: what a step reported must be copies of it
+    env = BondGraphMaintenanceVectorEnv(num_envs=3, obs_mode="phm", continue_after_failure=True)
+    chain = env.core.chain
+    statuses = []
+    update = chain.update
+
+    def recorded(*args):
+        statuses.append(update(*args))
+        return statuses[-1]
+
+    chain.update = recorded
+    env.reset(seed=1)
+    kept = []
+    for step in range(8):
+        env.step(np.full(3, 1 if step % 4 == 0 else 0))  # corrective actions move the true parameters too
+        info, status = env.step_info, statuses[-1]
+        kept.append((info, _copied(vars(info)), status, _copied(vars(status))))
+    for info, info_copy, status, status_copy in kept:
+        for record, copy in ((info, info_copy), (status, status_copy)):
+            for name, value in copy.items():
+                if isinstance(value, np.ndarray):
+                    np.testing.assert_array_equal(getattr(record, name), value, err_msg=name)
+                elif isinstance(value, dict):
+                    for key, array in value.items():
+                        np.testing.assert_array_equal(getattr(record, name)[key], array, err_msg=f"{name}[{key}]")
+
+
+def _copied(fields):
+    return {
+        name: value.copy() if isinstance(value, np.ndarray) else {key: array.copy() for key, array in value.items()}
+        for name, value in fields.items()
+        if isinstance(value, (np.ndarray, dict))
+    }
