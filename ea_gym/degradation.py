@@ -197,11 +197,11 @@ class Wear:
 
         n = len(values)
         running = np.ones(n, dtype=bool) if running is None else running
-        active, drawn = np.empty(n), np.empty(n, dtype=bool)
+        active = np.empty(n)
         # linear wear (or none) draws nothing: compiled; the random processes draw row by row
         clock = np.asarray(clock, dtype=float)
-        steady_wear(values, self.columns, running, self.faulty, self.arrival, self.velocity, clock, float(dt), self._linear, active, drawn)
-        for i in drawn.nonzero()[0].tolist():
+        drawn = steady_wear(values, self.columns, running, self.faulty, self.arrival, self.velocity, clock, float(dt), self._linear, active)
+        for i in drawn.tolist():
             rng = rngs[i]
             d = self.faulty[i]
             config, mean = self.configs[d], self.velocity[i] * active[i]

@@ -407,12 +407,12 @@ def test_steady_wear_equals_the_numpy_step_to_the_bit():
     rows[:, columns] = values
     expected = rows.copy()
     expected[:, columns] = np.where(running[:, None], wearing, values)
-    out, seconds, drawn = rows.copy(), np.empty(len(values)), np.empty(len(values), dtype=bool)
-    steady_wear(out, columns, running, faulty, arrival, velocity, clock, dt, linear, seconds, drawn)
+    out, seconds = rows.copy(), np.empty(len(values))
+    drawn = steady_wear(out, columns, running, faulty, arrival, velocity, clock, dt, linear, seconds)
     np.testing.assert_array_equal(out, expected)
     np.testing.assert_array_equal(seconds, active)
-    np.testing.assert_array_equal(np.flatnonzero(drawn), worn[random])
-    assert drawn.any() and len(steady) > 0
+    np.testing.assert_array_equal(drawn, worn[random])
+    assert len(drawn) > 0 and len(steady) > 0
 
 
 def test_mean_trend_rul_equals_the_numpy_formula_to_the_bit():

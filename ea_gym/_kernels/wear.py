@@ -15,26 +15,29 @@ from ea_gym._kernels.numpy_forms import numpy_maximum
 @numba.njit(cache=True)
 def steady_wear(
     values: np.ndarray, columns: np.ndarray, running: np.ndarray, faulty: np.ndarray, arrival: np.ndarray, velocity: np.ndarray,
-    clock: np.ndarray, dt: float, linear: np.ndarray, active: np.ndarray, drawn: np.ndarray,
-) -> None:
+    clock: np.ndarray, dt: float, linear: np.ndarray, active: np.ndarray,
+) -> np.ndarray:
     """Each system's seconds of wear in [clock, clock + dt] (after its fault's ``arrival``) into ``active``
     (N,); the mean drift velocity x active added to its faulty component's value (in place, component d in
     column ``columns[d]`` of ``values`` (N, ...)) where the system is ``running`` and the wear is linear or the
-    mean is 0; ``drawn`` (N,): the systems whose increment is random instead (left to the caller, which draws
-    it from the system's generator)."""
+    mean is 0. Returns the systems whose increment is random instead, in order (left to the caller, which
+    draws it from the system's generator)."""
+    drawn = np.empty(values.shape[0], dtype=np.intp)
+    count = 0
     for m in range(values.shape[0]):
         start = numpy_maximum(arrival[m], clock[m])
         seconds = clock[m] + dt - start
         seconds = seconds if (seconds > 0.0 or math.isnan(seconds)) else 0.0  # np.clip(., 0, dt), NaN kept
         seconds = seconds if (seconds < dt or math.isnan(seconds)) else dt
         active[m] = seconds
-        drawn[m] = False
         if seconds > 0:
             mean = velocity[m] * seconds
             if not linear[faulty[m]] and mean != 0:
-                drawn[m] = True
+                drawn[count] = m
+                count += 1
             elif running[m]:
                 values[m, columns[faulty[m]]] += mean
+    return drawn[:count]
 
 
 @numba.njit(cache=True, error_model="numpy")
