@@ -446,9 +446,10 @@ def test_drift_prognosis_is_the_suspects_drift_ends_within_the_horizon():
     confident = rng.random(n) < 0.6
     lower, upper, diffusion = np.array([90.0, 80.0, 95.0]), np.array([110.0, 120.0, 105.0]), rng.uniform(0.0, 0.05, d)
     t, z, horizon = stamps[:, 0] + 0.5, 1.959963984540054, 300.0
-    estimate, ends, suspect_drift, suspect_variance = np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n)
+    out = np.empty((7, n))
     drift_prognosis(value, drift, covariance[..., 0, 0].copy(), covariance[..., 0, 1].copy(), covariance[..., 1, 1].copy(), stamps, isolated,
-                    confident, lower, upper, diffusion, t, z**2, horizon, estimate, ends, suspect_drift, suspect_variance)
+                    confident, lower, upper, diffusion, t, z**2, horizon, out)
+    estimate, ends, suspect_drift, suspect_variance = out[0], out[1:4].T, out[4], out[5]
     rows = np.flatnonzero(confident)
     k = isolated[rows] - 1
     expected = np.empty((len(rows), 3))
@@ -459,5 +460,7 @@ def test_drift_prognosis_is_the_suspects_drift_ends_within_the_horizon():
     np.testing.assert_array_equal(estimate[rows], value[rows, k])
     np.testing.assert_array_equal(suspect_drift[rows], drift[rows, k])
     np.testing.assert_array_equal(suspect_variance[rows], covariance[rows, k, 1, 1])
+    np.testing.assert_array_equal(out[6], t)
     assert np.isinf(ends[~confident]).all() and np.isnan(estimate[~confident]).all()
+    assert np.isnan(suspect_drift[~confident]).all() and np.isnan(suspect_variance[~confident]).all()
     assert np.isinf(expected).any() and np.isfinite(expected).any()

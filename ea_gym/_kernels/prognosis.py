@@ -58,22 +58,23 @@ def drift_ends(
 def drift_prognosis(
     value: np.ndarray, drift: np.ndarray, variance: np.ndarray, covariance: np.ndarray, drift_variance: np.ndarray, stamps: np.ndarray,
     isolated: np.ndarray, confident: np.ndarray, lower: np.ndarray, upper: np.ndarray, diffusion: np.ndarray, t: np.ndarray, z2: float,
-    horizon: float, estimate: np.ndarray, ends: np.ndarray, suspect_drift: np.ndarray, suspect_drift_variance: np.ndarray,
+    horizon: float, out: np.ndarray,
 ) -> None:
     """``DriftPrognosis.update`` of N systems: for every ``confident`` one, its suspect d = isolated - 1's
     ``drift_end`` (from the estimator's (N, D) value, drift, variance, covariance, drift_variance, at its
     ``stamps``; safe limits, diffusion per parameter (D,)), each end more than ``horizon`` s after ``t``
-    (N,) inf; into estimate (N,) (NaN elsewhere), ends (N, 3) (inf elsewhere) and the suspect's drift and
-    its variance (N,) (NaN elsewhere)."""
+    (N,) inf. Into out (7, N): the suspect's estimate, the End of Life, its low and high end, the
+    suspect's drift and its variance, NaN (the ends inf) where not confident; then ``t``."""
     for m in range(value.shape[0]):
+        out[6, m] = t[m]
         if not confident[m]:
-            estimate[m], suspect_drift[m], suspect_drift_variance[m] = math.nan, math.nan, math.nan
-            ends[m, 0], ends[m, 1], ends[m, 2] = math.inf, math.inf, math.inf
+            out[0, m], out[4, m], out[5, m] = math.nan, math.nan, math.nan
+            out[1, m], out[2, m], out[3, m] = math.inf, math.inf, math.inf
             continue
         d = isolated[m] - 1
         end = drift_end(
             value[m, d], drift[m, d], variance[m, d], covariance[m, d], drift_variance[m, d], lower[d], upper[d], stamps[m, d], diffusion[d], z2
         )
         for k in range(3):
-            ends[m, k] = math.inf if end[k] - t[m] > horizon else end[k]
-        estimate[m], suspect_drift[m], suspect_drift_variance[m] = value[m, d], drift[m, d], drift_variance[m, d]
+            out[1 + k, m] = math.inf if end[k] - t[m] > horizon else end[k]
+        out[0, m], out[4, m], out[5, m] = value[m, d], drift[m, d], drift_variance[m, d]

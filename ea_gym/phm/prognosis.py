@@ -18,7 +18,7 @@ import math
 import operator
 from collections.abc import Sequence
 from dataclasses import dataclass
-from functools import cache
+from functools import cache, cached_property
 from typing import Protocol, overload
 
 import numpy as np
@@ -367,28 +367,37 @@ class DriftPrognosis:
     def update(self, estimates: ParameterEstimates, isolated: np.ndarray, confident: np.ndarray, t: np.ndarray) -> Prognosis:
         """The End of Life of every confident suspect (class index ``isolated``) from its value and drift at ``t`` (s);
         none for a suspect the isolation is unsure of, nor beyond the horizon (as far ahead as the trend route looks)."""
-        n = self.n
-        estimate, ends, drift, drift_variance = np.empty(n), np.empty((n, 3)), np.empty(n), np.empty(n)
+        out = np.empty((7, self.n))
         drift_prognosis(
             estimates.value, estimates.drift, estimates.variance, estimates.covariance, estimates.drift_variance, estimates.time,
             np.asarray(isolated), np.asarray(confident), self._lower, self._upper, self.diffusion, np.asarray(t, dtype=float),
-            normal_quantile(0.5 + 0.5 * self.config.confidence) ** 2, self.config.horizon, estimate, ends, drift, drift_variance,
+            self._squared_quantile, self.config.horizon, out,
         )
-        predictions = DriftEndsOfLife(np.array(confident, dtype=bool), np.array(t, dtype=float), ends, estimate, drift, drift_variance)
-        return Prognosis(estimate=estimate, eol=ends[:, 0], eol_low=ends[:, 1], eol_high=ends[:, 2], end_of_life=predictions)
+        estimate, eol, eol_low, eol_high, drift, drift_variance, stamps = out  # stamps: a copy of t, which moves on
+        predictions = DriftEndsOfLife(np.array(confident, dtype=bool), stamps, eol, eol_low, eol_high, estimate, drift, drift_variance)
+        return Prognosis(estimate=estimate, eol=eol, eol_low=eol_low, eol_high=eol_high, end_of_life=predictions)
+
+    @cached_property
+    def _squared_quantile(self) -> float:
+        """The square of the interval's confidence's normal quantile (found when first needed: scipy.special loads slowly)."""
+        return normal_quantile(0.5 + 0.5 * self.config.confidence) ** 2
 
 
 class DriftEndsOfLife(Sequence["EndOfLife | None"]):
     """Each of N systems' ``DriftPrognosis`` prediction, None where none, made when read (most steps nobody does).
 
     Args:
-        made: which systems have a prediction, (N,); t: the prediction time (s), (N,); ends: End of Life
-            and interval (s), (N, 3); value: the estimate it starts from; drift and drift_variance: the drift
-            and its variance, (N,) each.
+        made: which systems have a prediction, (N,); t: the prediction time (s), (N,); eol, eol_low, eol_high: End of
+            Life and interval (s), (N,) each; value: the estimate it starts from; drift and drift_variance: the
+            drift and its variance, (N,) each.
     """
 
-    def __init__(self, made: np.ndarray, t: np.ndarray, ends: np.ndarray, value: np.ndarray, drift: np.ndarray, drift_variance: np.ndarray):
-        self._made, self._t, self._ends, self._value, self._drift, self._drift_variance = made, t, ends, value, drift, drift_variance
+    def __init__(
+        self, made: np.ndarray, t: np.ndarray, eol: np.ndarray, eol_low: np.ndarray, eol_high: np.ndarray, value: np.ndarray, drift: np.ndarray,
+        drift_variance: np.ndarray,
+    ):
+        self._made, self._t, self._ends = made, t, (eol, eol_low, eol_high)
+        self._value, self._drift, self._drift_variance = value, drift, drift_variance
 
     def __len__(self) -> int:
         return len(self._t)
@@ -407,9 +416,10 @@ class DriftEndsOfLife(Sequence["EndOfLife | None"]):
             raise IndexError(f"system {j} out of range for {len(self)} systems")
         if not self._made[j]:
             return None
-        ends, drift = self._ends[j], float(self._drift[j])
-        limit = ("lower" if drift < 0 else "upper") if math.isfinite(ends[0]) else None
+        eol, low, high = (float(end[j]) for end in self._ends)
+        drift = float(self._drift[j])
+        limit = ("lower" if drift < 0 else "upper") if math.isfinite(eol) else None
         return EndOfLife(
-            float(self._t[j]), float(ends[0]), float(ends[1]), float(ends[2]), limit, float(self._value[j]), drift,
+            float(self._t[j]), eol, low, high, limit, float(self._value[j]), drift,
             math.sqrt(max(float(self._drift_variance[j]), 0.0)), None,
         )
