@@ -6,8 +6,9 @@ What it measures: env-steps per second (wall and per CPU second) of the native b
 after the warm-up), "healthy" (no fault arrives; "carry on") or "random" (default wear, random actions
 from a seeded generator), ``--steps`` timed batch steps after ``--warmup`` ones, for this checkout and
 for ``--ref`` (default the previous commit, checked out into a temporary git worktree), in alternating
-fresh processes, ``--rounds`` times each: a machine whose load drifts affects both alike. The
-measurement uses the environment's public interface only, so any commit with these keywords runs it.
+fresh processes, ``--rounds`` times each, each round in the other order than the last: a machine whose
+load drifts affects both alike. The measurement uses the environment's public interface only, so any
+commit with these keywords runs it.
 
 Run: ``python experiments/bench_against.py [--ref HEAD~1] [--regime alarm] [--size 256] [--rounds 3]``.
 """
@@ -84,7 +85,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             rates: dict[str, list[float]] = {name: [] for name in sides}
             cpu_rates: dict[str, list[float]] = {name: [] for name in sides}
             for round_ in range(args.rounds):
-                for name, root in sides.items():
+                # the order alternates too (ABBA...): whichever side runs first in a round has been seen to run slower
+                for name, root in list(sides.items())[:: -1 if round_ % 2 else 1]:
                     result = measure(root, args.regime, args.size, args.steps, args.warmup, args.seed)
                     rates[name].append(result["env_steps_per_s"])
                     cpu_rates[name].append(result["env_steps_per_cpu_s"])
