@@ -1,10 +1,11 @@
 """The isolation's compiled steps (``ea_gym.phm.isolation``): the frame's and the balance evidence's sums
 read from the history's rows, numpy's pseudo-inverse around its eigendecomposition and matrix product
-(which stay numpy's), the classes' chi-squares, and the fusion of the evidence around numpy's log and exp.
+(which stay numpy's), the classes' chi-squares and log likelihood ratios, the hypotheses to estimate, and
+the fusion of the evidence around numpy's log and exp.
 
 Each step repeats the arithmetic of the numpy form it replaces (``np.sum``, ``np.linalg.pinv`` with
-``hermitian=True``, the chi-square's element-wise formula) in the same order, so that the numbers are
-the same to the bit.
+``hermitian=True``, ``np.einsum``, the chi-square's element-wise formula) in the same order, so that
+the numbers are the same to the bit.
 """
 
 from __future__ import annotations
