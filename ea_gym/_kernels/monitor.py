@@ -82,14 +82,14 @@ def smooth_rows(
     differentiated = np.full(channels, -1)  # each channel's I element (index into ``inertia``), -1: none
     for i in range(len(inertia)):
         differentiated[int(inertia[i, 0])] = i
-    # LANES signals side by side (as many as there are, where fewer), time first: the filter's recursion
-    # runs across them in SIMD; the lanes past the last signal filter stale ones, whose outputs are discarded
-    width = min(LANES, len(signals))
-    x = np.zeros((length, width))
-    filtered = np.empty((length, width))
-    derivative = np.empty((length, width))
-    for g0 in range(0, len(signals), width):
-        lanes = min(width, len(signals) - g0)
+    # LANES signals side by side, time first: the filter's recursion runs across them in SIMD (LANES, a
+    # constant, lets the compiler unroll it: fewer lanes where there are fewer signals ran 6 % slower at
+    # N = 256); the lanes past the last signal filter stale ones, whose outputs are discarded
+    x = np.zeros((length, LANES))
+    filtered = np.empty((length, LANES))
+    derivative = np.empty((length, LANES))
+    for g0 in range(0, len(signals), LANES):
+        lanes = min(LANES, len(signals) - g0)
         differentiate = False
         # the copies indexed by unsigned offsets: a signed index costs a negative-index check at every access
         for b in range(lanes):
