@@ -73,12 +73,13 @@ def smooth_rows(
     # signal: each distinct one is filtered once
     source, distinct = load_sources(rows, load, skip)
     # the signals to filter, channel after channel: every row's measured ones, then the distinct loads
-    signals = np.empty((M * load + len(distinct), 2), dtype=np.int64)
+    count = M * load + len(distinct)
+    signal_row, signal_channel = np.empty(count, dtype=np.int64), np.empty(count, dtype=np.int64)
     for c in range(load):
-        for m in range(M):
-            signals[c * M + m, 0], signals[c * M + m, 1] = m, c
-    for i in range(len(distinct)):
-        signals[M * load + i, 0], signals[M * load + i, 1] = distinct[i], load
+        signal_row[c * M : (c + 1) * M] = np.arange(M)
+        signal_channel[c * M : (c + 1) * M] = c
+    signal_row[M * load :] = distinct
+    signal_channel[M * load :] = load
     differentiated = np.full(channels, -1)  # each channel's I element (index into ``inertia``), -1: none
     for i in range(len(inertia)):
         differentiated[int(inertia[i, 0])] = i
@@ -88,20 +89,19 @@ def smooth_rows(
     x = np.zeros((length, LANES))
     filtered = np.empty((length, LANES))
     derivative = np.empty((length, LANES))
-    for g0 in range(0, len(signals), LANES):
-        lanes = min(LANES, len(signals) - g0)
+    for g0 in range(0, count, LANES):
+        lanes = min(LANES, count - g0)
         differentiate = False
         # the copies indexed by unsigned offsets: a signed index costs a negative-index check at every access
         for b in range(lanes):
-            m, c = signals[g0 + b]
+            m, c = signal_row[g0 + b], signal_channel[g0 + b]
             signal, lane = rows[m, c, skip:], np.uint64(b)
             for t in range(length):
                 x[np.uint64(t), lane] = signal[np.uint64(t)]
             differentiate |= differentiated[c] >= 0
         filter_lanes(x, cut, moments, smoother, differentiator, differentiate, filtered, derivative)
         for b in range(lanes):
-            m, c = signals[g0 + b]
-            lane = np.uint64(b)
+            m, c, lane = signal_row[g0 + b], signal_channel[g0 + b], np.uint64(b)
             out = smooth[m, c]
             for t in range(length - cut):
                 out[np.uint64(t)] = filtered[np.uint64(cut + t), lane]
