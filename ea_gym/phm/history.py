@@ -30,31 +30,20 @@ def push_window(buffer: np.ndarray, new: np.ndarray) -> np.ndarray:
     array's end are its entries moved back to the start. The history is then copied once per
     buffer length's worth of pushes instead of at every push, and no array is allocated.
     """
-    T = buffer.shape[-1]
+    k, T = new.shape[-1], buffer.shape[-1]
     backing = buffer.base
     if backing is None or not _is_window(buffer, backing):
         backing = np.empty(buffer.shape[:-1] + (2 * T,), dtype=buffer.dtype)
         backing[..., :T] = buffer
         buffer = backing[..., :T]
-    return slide_window(backing, window_start(buffer, backing), buffer, new)[0]
-
-
-def window_start(window: np.ndarray, backing: np.ndarray) -> int:
-    """Where a window ``push_window`` keeps starts on its ``backing`` array's last axis."""
-    return (window.ctypes.data - backing.ctypes.data) // window.itemsize
-
-
-def slide_window(backing: np.ndarray, start: int, window: np.ndarray, new: np.ndarray) -> tuple[np.ndarray, int]:
-    """``push_window`` on the window at ``start`` on ``backing``'s last axis: the new window and its start."""
-    k, T = new.shape[-1], window.shape[-1]
-    start += k
+    start = (buffer.ctypes.data - backing.ctypes.data) // buffer.itemsize + k  # the window's start, moved on
     if start + T > backing.shape[-1]:
         # the entries kept lie past T - k, clear of where they go: no overlap
-        backing[..., : T - k] = window[..., k:]
+        backing[..., : T - k] = buffer[..., k:]
         start = 0
     moved = backing[..., start : start + T]
     moved[..., T - k :] = new
-    return moved, start
+    return moved
 
 
 def _is_window(buffer: np.ndarray, backing: np.ndarray) -> bool:
