@@ -115,7 +115,10 @@ def test_a_corrupt_threshold_entry_is_rebuilt(cache_in: Path, content: str) -> N
 
 def test_shipped_thresholds_are_the_environments_own() -> None:
     """Every built-in at the environments' default settings is in the shipped table; the spring-mass-damper's values
-    are exactly a fresh calibration's (the others' calibrations take seconds each: their keys and shapes are checked)."""
+    are a fresh calibration's (the others' calibrations take seconds each: their keys and shapes are checked).
+
+    To 1e-12, not to the bit: the calibration's simulations go through BLAS, whose kernels differ by processor in
+    the last bits (up to 1.3e-13 relative on an AMD EPYC against the table made elsewhere)."""
     config = EnvConfig().phm_config
     table = shipped_thresholds()
     for name in MODELS:
@@ -125,7 +128,7 @@ def test_shipped_thresholds_are_the_environments_own() -> None:
     model = spring_mass_damper()
     rng = np.random.default_rng(0)
     fresh = calibrate_thresholds(model, config, rng)
-    assert table[calibration_key(model, config, np.random.default_rng(0))]["thresholds"] == fresh.tolist()
+    np.testing.assert_allclose(table[calibration_key(model, config, np.random.default_rng(0))]["thresholds"], fresh, rtol=1e-12, atol=0)
     assert table[calibration_key(model, config, np.random.default_rng(0))]["rng_after"] == rng.bit_generator.state
 
 
