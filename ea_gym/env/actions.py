@@ -16,7 +16,7 @@ the handler does the rest. Adding a kind takes its ``ActionKind``, the event it 
     from ea_gym.env.actions import DEFAULT_ACTION_KINDS, ActionHandler, Orders
     from ea_gym.env.events import ActionKind, Event
 
-    INSPECT = ActionKind("inspect", cost_item="inspection", price=lambda costs: 2.0)
+    INSPECT = ActionKind("inspect", cost_item="inspection", price=lambda costs: 2.0, maintains=False)
 
     @dataclass(frozen=True)
     class Inspection(Event):
