@@ -140,3 +140,14 @@ def test_action_kinds_are_checked():
 
     with pytest.raises(ValueError, match="needs a cost_item"):
         _ = gym.make(ENV_ID, obs_mode="sensors", action_kinds=(*DEFAULT_ACTION_KINDS, Unpriced))
+
+
+def test_the_vector_env_takes_the_added_kind():
+    vector = gym.make_vec(ENV_ID, num_envs=2, vectorization_mode="vector_entry_point", obs_mode="sensors", horizon=10,
+                          action_kinds=(*DEFAULT_ACTION_KINDS, Surveyor))
+    meanings = vector.unwrapped.action_meanings
+    assert vector.single_action_space.n == len(meanings) and meanings[-1] == "survey b"
+    vector.reset(seed=0)
+    _, reward, _, _, info = vector.step(np.array([0, len(meanings) - 1]))
+    assert reward.tolist() == [0.0, -SURVEY_PRICE] and info["cost"]["survey"].tolist() == [0.0, SURVEY_PRICE]
+    assert info["events"][0] == [] and info["events"][1] == ["survey of b"]
