@@ -7,8 +7,11 @@ that order, make the action table (``ea_gym.env.events.action_table``), so the o
 index of the ``Discrete`` action space means. Carrying on comes first: it is the order a machine takes
 while it is down.
 
-A kind's price (counted under its ``cost_item`` in ``info["cost"]``) and downtime come with the kind;
-the handler does the rest. Adding a kind takes its ``ActionKind``, the event it records (an
+A kind's cost comes with the kind: its price per order (counted under its ``cost_item`` in
+``info["cost"]``; the built-in kinds read theirs from ``CostModel``) and its downtime (steps). The
+handler does the rest: made once per environment with the ``Machines`` it acts on, it keeps what it
+needs from step to step (the corrective action's heading) and ``apply`` carries out each step's
+``Orders`` of its kind. Adding a kind takes its ``ActionKind``, the event it records (an
 ``ea_gym.env.events.Event``: ``str`` and ``parse``) and its handler, and nothing else::
 
     from dataclasses import dataclass

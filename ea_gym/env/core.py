@@ -84,7 +84,6 @@ class MaintenanceCore:
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
         self.operation = Operation(model, self.monitor, n_systems, config.sample_rate, config.window, config.noise, config.load_std)
         self.h, self.samples = self.operation.h, self.operation.samples
-        self._take_action_kinds(action_kinds)
         self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self.observer = Observer(config, n_systems, self.elements, self.rco, self.classes, self.limits, self.nominal[self._component_index])
@@ -95,16 +94,18 @@ class MaintenanceCore:
         self._down = np.zeros(n, dtype=int)  # steps left without production
         self._since_maintenance = np.zeros(n)  # s
         self._last_orders = np.zeros(n, dtype=int)  # the orders of the step before: which ones continue
+        self._take_action_kinds(action_kinds)
 
     def _take_action_kinds(self, action_kinds: Sequence[HandlerFactory]) -> None:
-        """The handlers, the action table of their kinds, each action's handler and component, the cost items."""
+        """The handlers, the action table of their kinds, each action's kind (its handler's index) and
+        component, and the cost items."""
         self.handlers = tuple(make(self) for make in action_kinds)
         kinds = [handler.kind for handler in self.handlers]
         if not kinds or kinds[0] != ActionKind.CARRY_ON or len(set(kinds)) != len(kinds):
             raise ValueError(f"action_kinds must be distinct kinds, carrying on first (a machine that is down carries on), got {kinds}")
         self.actions = action_table(self.components, kinds)
         self.action_meanings = tuple(map(str, self.actions))
-        self._action_handler = np.array([kinds.index(action.kind) for action in self.actions])
+        self._action_kind = np.array([kinds.index(action.kind) for action in self.actions])
         self._action_component = np.array([-1 if a.component is None else self.components.index(a.component) for a in self.actions])
         self._action_maintains = np.array([action.kind.maintains for action in self.actions])
         self.cost_items = cost_items(kinds)
@@ -210,7 +211,7 @@ class MaintenanceCore:
         carrying_on = orders == 0  # action 0 is carrying on
         if carrying_on.all():  # the common step
             return ~carrying_on
-        kinds = self._action_handler[orders]
+        kinds = self._action_kind[orders]
         for kind in np.unique(kinds).tolist():  # in the table's order
             rows = np.flatnonzero(kinds == kind)
             given = orders[rows]
