@@ -4,7 +4,6 @@ the library, extends the environment (its actions, cost, event) and the agents w
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import gymnasium as gym
@@ -17,7 +16,7 @@ from agents.initial_policy import immediate_costs
 from agents.policies import ActionMap
 from ea_gym.env.actions import DEFAULT_ACTION_KINDS, ActionHandler, Orders
 from ea_gym.env.costs import CostModel
-from ea_gym.env.events import Action, ActionKind, Event, parse_action, parse_event
+from ea_gym.env.events import Action, ActionKind, ComponentEvent, Event, parse_action, parse_event
 
 ENV_ID = "ea_gym/SpringMassDamper-v0"
 SURVEY_PRICE = 2.5
@@ -25,19 +24,10 @@ SURVEY_PRICE = 2.5
 SURVEY = ActionKind("survey", cost_item="survey", price=lambda costs: SURVEY_PRICE, maintains=False)
 
 
-@dataclass(frozen=True)
-class Survey(Event):
+class Survey(ComponentEvent):
     """A survey of ``component`` (the toy kind's event)."""
 
-    component: str
-
-    def __str__(self) -> str:
-        return f"survey of {self.component}"
-
-    @classmethod
-    def parse(cls, text: str) -> Survey | None:
-        prefix = "survey of "
-        return cls(text[len(prefix) :]) if text.startswith(prefix) else None
+    prefix = "survey of"
 
 
 class Surveyor(ActionHandler):

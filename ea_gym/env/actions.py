@@ -12,25 +12,17 @@ A kind's cost comes with the kind: its price per order (counted under its ``cost
 handler does the rest: made once per environment with the ``Machines`` it acts on, it keeps what it
 needs from step to step (the corrective action's heading) and ``apply`` carries out each step's
 ``Orders`` of its kind. Adding a kind takes its ``ActionKind``, the event it records (an
-``ea_gym.env.events.Event``: ``str`` and ``parse``) and its handler, and nothing else::
+``ea_gym.env.events.Event``, whose ``str`` and ``parse`` a ``ComponentEvent`` has for a prefix and a
+component) and its handler, and nothing else::
 
-    from dataclasses import dataclass
     import gymnasium as gym
     from ea_gym.env.actions import DEFAULT_ACTION_KINDS, ActionHandler, Orders
-    from ea_gym.env.events import ActionKind, Event
+    from ea_gym.env.events import ActionKind, ComponentEvent
 
     INSPECT = ActionKind("inspect", cost_item="inspection", price=lambda costs: 2.0, maintains=False)
 
-    @dataclass(frozen=True)
-    class Inspection(Event):
-        component: str
-
-        def __str__(self) -> str:
-            return f"inspection of {self.component}"
-
-        @classmethod
-        def parse(cls, text: str) -> "Inspection | None":
-            return cls(text.removeprefix("inspection of ")) if text.startswith("inspection of ") else None
+    class Inspection(ComponentEvent):
+        prefix = "inspection of"
 
     class Inspect(ActionHandler):
         kind = INSPECT

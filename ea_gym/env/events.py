@@ -140,19 +140,28 @@ class Event:
 
 
 @dataclass(frozen=True)
-class CorrectiveStep(Event):
-    """A step of corrective action on ``component``."""
+class ComponentEvent(Event):
+    """An event on one ``component`` whose text is its ``prefix`` and the component's name; a subclass
+    names its ``prefix`` and is done."""
 
     component: str
+    prefix: ClassVar[str | None] = None
 
     def __str__(self) -> str:
-        return f"corrective action on {self.component}"
+        return f"{self.prefix} {self.component}"
 
     @classmethod
-    def parse(cls, text: str) -> CorrectiveStep | None:
-        prefix = "corrective action on "
-        component = text[len(prefix) :]
-        return cls(component) if text.startswith(prefix) and " " not in component else None
+    def parse(cls, text: str) -> ComponentEvent | None:
+        if cls.prefix is None or not text.startswith(cls.prefix + " "):
+            return None
+        component = text[len(cls.prefix) + 1 :]
+        return None if " " in component else cls(component)
+
+
+class CorrectiveStep(ComponentEvent):
+    """A step of corrective action on ``component``."""
+
+    prefix = "corrective action on"
 
 
 @dataclass(frozen=True)
