@@ -138,8 +138,8 @@ class _Tally:
         self.sums = {key: np.zeros(n) for key in _FIELDS if key != "availability"}
         self.down_steps = np.zeros(n)
         kinds = [parse_action(meaning).kind for meaning in action_meanings]
-        self._replace = np.array([kind is ActionKind.REPLACE for kind in kinds] + [False])
-        self._corrective = np.array([kind is ActionKind.CORRECTIVE for kind in kinds] + [False])
+        self._replace = np.array([kind == ActionKind.REPLACE for kind in kinds] + [False])
+        self._corrective = np.array([kind == ActionKind.CORRECTIVE for kind in kinds] + [False])
 
     def step(
         self, actions: np.ndarray, was_down: np.ndarray, costs: Mapping[str, Any], failed: np.ndarray,

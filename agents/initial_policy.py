@@ -27,16 +27,15 @@ import torch
 from stable_baselines3.common.policies import ActorCriticPolicy
 
 from ea_gym.env.costs import CostModel
-from ea_gym.env.events import ActionKind, parse_action
+from ea_gym.env.events import parse_action
 
 __all__ = ["immediate_costs", "initial_probabilities", "start_from"]
 
 
 def immediate_costs(action_meanings: Sequence[str], costs: CostModel) -> np.ndarray:
-    """Each action's cost on the step it is taken (carrying on 0), in the cost model's unit."""
-    per_kind = {ActionKind.CARRY_ON: 0.0, ActionKind.CORRECTIVE: costs.corrective,
-                ActionKind.REPLACE: costs.replacement + costs.replace_downtime * costs.lost_production}
-    return np.array([per_kind[parse_action(meaning).kind] for meaning in action_meanings])
+    """Each action's cost on the step it is taken (carrying on 0), in the cost model's unit: its kind's
+    price and its downtime's lost production."""
+    return np.array([parse_action(meaning).kind.immediate_cost(costs) for meaning in action_meanings])
 
 
 def initial_probabilities(action_meanings: Sequence[str], costs: CostModel, carry_on: float) -> np.ndarray:

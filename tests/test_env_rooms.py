@@ -89,7 +89,7 @@ def test_a_config_and_its_keywords_give_the_same_episode():
 def test_actions_are_typed_and_their_meanings_round_trip():
     env = gym.make(ENV_ID, obs_mode="sensors")
     actions, meanings = env.unwrapped.actions, env.unwrapped.action_meanings
-    assert actions == action_table(env.unwrapped.maintainable_components)
+    assert actions == action_table(env.unwrapped.maintainable_components, (ActionKind.CARRY_ON, ActionKind.CORRECTIVE, ActionKind.REPLACE))
     assert meanings == tuple(map(str, actions)) and meanings[0] == "carry on"
     assert [parse_action(m) for m in meanings] == list(actions)
     assert str(Action(ActionKind.REPLACE, "k")) == "replace k" and str(Action(ActionKind.CORRECTIVE, "b")) == "corrective action on b"

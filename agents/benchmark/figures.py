@@ -160,22 +160,23 @@ def _plot_timeline(axes: Any, name: str, tl: Mapping[str, Any], row: Mapping[str
 
 
 def _mark_events(ax_p: Any, ax_r: Any, tl: Mapping[str, Any], color: Mapping[str, str]) -> None:
-    """Replacements (triangles), corrective steps (ticks) and failures (crosses) above and below the parameter plot."""
+    """Replacements (triangles), corrective steps (ticks) and failures (crosses) above and below the parameter
+    plot; actions of other kinds are not marked."""
     for at, meaning in tl["actions"]:
         action = parse_action(meaning)
-        tint = color[str(action.component)]  # recorded actions are maintenance: each has its component
-        if action.kind is ActionKind.REPLACE:
+        if action.kind == ActionKind.REPLACE:
+            tint = color[str(action.component)]
             ax_p.plot(at, 1.12, marker="v", ms=8, color=tint, mec="black", mew=0.6, zorder=5, clip_on=False)
             ax_r.axvline(at, color=tint, lw=0.8, alpha=0.6, zorder=1)
-        else:
-            ax_p.plot(at, -0.12, marker="|", ms=8, color=tint, zorder=5, clip_on=False)
+        elif action.kind == ActionKind.CORRECTIVE:
+            ax_p.plot(at, -0.12, marker="|", ms=8, color=color[str(action.component)], zorder=5, clip_on=False)
     for ft, _ in tl["failures"]:
         ax_p.plot(ft, 1.12, marker="X", ms=9, color="#c0392b", mec="black", mew=0.6, zorder=6, clip_on=False)
 
 
 def _episode_summary(tl: Mapping[str, Any]) -> str:
-    replacements = sum(1 for _, meaning in tl["actions"] if parse_action(meaning).kind is ActionKind.REPLACE)
-    correctives = len(tl["actions"]) - replacements
+    kinds = [parse_action(meaning).kind for _, meaning in tl["actions"]]
+    replacements, correctives = kinds.count(ActionKind.REPLACE), kinds.count(ActionKind.CORRECTIVE)
     summary = f"episode cost {tl['cost']:.0f}, {len(tl['failures'])} failure(s), {replacements} replacement(s)"
     if correctives:
         summary += f", {correctives} corrective step(s)"

@@ -3,8 +3,8 @@
 One step: apply the maintenance actions, wear the components for ``step_seconds``, simulate the plant
 and the fault-free reference model for ``window_seconds`` under each system's load, measure, run the
 PHM chain (or only the monitor), then check failures and count costs. ``MaintenanceCore`` composes
-the rooms that do it: ``operation`` (loads, plant, sensors, wear), ``events`` (actions and events),
-``observations`` and ``infos``.
+the rooms that do it: ``operation`` (loads, plant, sensors, wear), ``actions`` (what each kind of
+action does), ``events`` (actions and events as values), ``observations`` and ``infos``.
 """
 
 from __future__ import annotations
@@ -20,9 +20,10 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import component_activity_index
+from ea_gym.env.actions import DEFAULT_ACTION_KINDS, HandlerFactory, Orders
 from ea_gym.env.config import EnvConfig
-from ea_gym.env.events import CorrectiveStep, Event, Failure, Replacement, action_table
-from ea_gym.env.infos import COST_ITEMS, StepInfo
+from ea_gym.env.events import ActionKind, Event, Failure, Replacement, action_table
+from ea_gym.env.infos import StepInfo, cost_items
 from ea_gym.env.observations import Observation, Observer, OracleTruth
 from ea_gym.env.operation import Degradation, Operation
 from ea_gym.models import SystemModel
@@ -51,6 +52,8 @@ class MaintenanceCore:
         classifier: the isolation network (phm mode); None loads the one shipped for the model.
         calibration_seed: seed of the detector's fault-free calibration runs (fixed, so that an
             environment's behaviour depends only on its reset seeds).
+        action_kinds: the handlers of the action kinds in use (``ea_gym.env.actions``), carrying on
+            first; their order is the action table's.
     """
 
     def __init__(
@@ -60,6 +63,7 @@ class MaintenanceCore:
         n_systems: int = 1,
         classifier: FaultClassifier | None = None,
         calibration_seed: int = 0,
+        action_kinds: Sequence[HandlerFactory] = DEFAULT_ACTION_KINDS,
     ):
         if not isinstance(config, EnvConfig):
             raise TypeError(f"config must be an EnvConfig, got {type(config).__name__}")
@@ -80,9 +84,6 @@ class MaintenanceCore:
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
         self.operation = Operation(model, self.monitor, n_systems, config.sample_rate, config.window, config.noise, config.load_std)
         self.h, self.samples = self.operation.h, self.operation.samples
-        self.actions = action_table(self.components)
-        self.action_meanings = tuple(map(str, self.actions))
-        self._corrective_speed = config.corrective_rate * (self.limits[:, 1] - self.limits[:, 0])
         self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self.observer = Observer(config, n_systems, self.elements, self.rco, self.classes, self.limits, self.nominal[self._component_index])
@@ -92,7 +93,26 @@ class MaintenanceCore:
         self._steps = np.zeros(n, dtype=int)
         self._down = np.zeros(n, dtype=int)  # steps left without production
         self._since_maintenance = np.zeros(n)  # s
-        self._corrective_direction = np.zeros((n, len(self.components)))  # of the corrective action under way
+        self._last_orders = np.zeros(n, dtype=int)  # the orders of the step before: which ones continue
+        self._take_action_kinds(action_kinds)
+
+    def _take_action_kinds(self, action_kinds: Sequence[HandlerFactory]) -> None:
+        """The handlers, the action table of their kinds, each action's kind (its handler's index) and
+        component, and the cost items."""
+        self.handlers = tuple(make(self) for make in action_kinds)
+        kinds = [handler.kind for handler in self.handlers]
+        if not kinds or kinds[0] != ActionKind.CARRY_ON or len(set(kinds)) != len(kinds):
+            raise ValueError(f"action_kinds must be distinct kinds, carrying on first (a machine that is down carries on), got {kinds}")
+        self.actions = action_table(self.components, kinds)
+        self.action_meanings = tuple(map(str, self.actions))
+        self._action_kind = np.array([kinds.index(action.kind) for action in self.actions])
+        self._action_component = np.array([-1 if a.component is None else self.components.index(a.component) for a in self.actions])
+        self._action_maintains = np.array([action.kind.maintains for action in self.actions])
+        self.cost_items = cost_items(kinds)
+        self._prices = [kind.price(self.config.costs) for kind in kinds]
+        if any(price != 0 and kind.cost_item is None for kind, price in zip(kinds, self._prices)):
+            raise ValueError("an action kind with a price needs a cost_item to count it under")
+        self._cost_rows = [-1 if kind.cost_item is None else self.cost_items.index(kind.cost_item) for kind in kinds]
 
     # -- public read-only views -----------------------------------------------------------------
 
@@ -130,7 +150,7 @@ class MaintenanceCore:
         mask = np.ones(self.n, dtype=bool) if systems is None else np.asarray(systems, dtype=bool)
         self._clock[mask] = 0.0
         self._since_maintenance[mask] = 0.0
-        self._corrective_direction[mask] = 0.0
+        self._last_orders[mask] = 0
         self._theta[mask] = self.nominal
         self._steps[mask] = 0
         self._down[mask] = 0
@@ -144,12 +164,12 @@ class MaintenanceCore:
 
     def reset_info(self) -> StepInfo:
         """What the systems report after a reset: their true state, no cost, no event."""
-        return StepInfo.at_reset(self.model.parameter_names, self.true_parameters, self.true_rul())
+        return StepInfo.at_reset(self.model.parameter_names, self.true_parameters, self.true_rul(), self.cost_items)
 
     # -- the step ---------------------------------------------------------------------------------
 
     def step(self, actions: np.ndarray, rngs: Sequence[np.random.Generator]) -> StepResult:
-        """Advance every system by one step under ``actions`` (N,) in [0, 2 n_components]."""
+        """Advance every system by one step under ``actions`` (N,), indices into ``self.actions``."""
         # small arrays throughout: one BLAS thread, which also leaves the other core to the learner's torch
         with single_threaded_blas():
             return self._step(actions, rngs)
@@ -161,10 +181,10 @@ class MaintenanceCore:
         if actions.shape != (self.n,) or actions.dtype.kind not in "iu" or not take_orders(actions, n_actions, self._down, orders):
             raise ValueError(f"actions must be {self.n} integers in [0, {n_actions - 1}], got {actions!r}")
         dt = self.config.step_seconds
-        items = np.zeros((len(COST_ITEMS), self.n))  # one row per cost item, the total last
-        costs = dict(zip(COST_ITEMS, items))
+        items = np.zeros((len(self.cost_items), self.n))  # one row per cost item, the total last
+        costs = dict(zip(self.cost_items, items))
         events: list[list[Event]] = [[] for _ in range(self.n)]
-        maintained = self._maintain(orders, rngs, costs, events)  # a machine under replacement took no orders
+        maintained = self._maintain(orders, rngs, items, events)  # a machine under replacement took no orders
 
         running = self._down == 0
         self.degradation.advance(self._theta, running, self._clock, dt, rngs)
@@ -175,7 +195,7 @@ class MaintenanceCore:
         terminated, truncated = np.empty(self.n, dtype=bool), np.empty(self.n, dtype=bool)
         # lost production, downtime, time since maintenance, step count, episode ends and the total cost, in place
         close_step(
-            items, COST_ITEMS.index("lost_production"), self.config.costs.lost_production, self._down, self._since_maintenance,
+            items, self.cost_items.index("lost_production"), self.config.costs.lost_production, self._down, self._since_maintenance,
             self._steps, maintained, failed, dt, self.config.horizon, not self.config.continue_after_failure, terminated, truncated,
         )
         observation = self.observe(outputs)
@@ -183,38 +203,22 @@ class MaintenanceCore:
         return StepResult(observation=observation, reward=-costs["total"], terminated=terminated, truncated=truncated, info=info)
 
     def _maintain(
-        self, actions: np.ndarray, rngs: Sequence[np.random.Generator], costs: dict[str, np.ndarray], events: list[list[Event]]
+        self, orders: np.ndarray, rngs: Sequence[np.random.Generator], items: np.ndarray, events: list[list[Event]]
     ) -> np.ndarray:
-        """Apply the corrective actions and replacements ``actions`` (N,); returns the systems maintained (N,) bool."""
-        maintained = actions > 0
-        if not maintained.any():  # carry on everywhere: the common step
-            self._corrective_direction.fill(0.0)
-            return maintained
-        k = len(self.components)
-        corrective = (actions >= 1) & (actions <= k)
-        replace = actions > k
-        if corrective.any():
-            rows = np.flatnonzero(corrective)
-            d = actions[rows] - 1
-            j = self._component_index[d]
-            direction = self._corrective_direction
-            new = direction[rows, d] == 0  # a new corrective action heads for nominal
-            heading = np.sign(self.nominal[j[new]] - self._theta[rows[new], j[new]])
-            direction[rows[new]] = 0.0
-            direction[rows[new], d[new]] = np.where(heading == 0, 1.0, heading)
-            change = direction[rows, d] * self._corrective_speed[d] * self.config.step_seconds
-            self._theta[rows, j] += change
-            if self.chain is not None:  # the maintenance log: the chain's prognosis knows what was done
-                self.chain.record_adjustment(rows, d, change)
-            costs["corrective"][rows] += self.config.costs.corrective
-            for i, component in zip(rows, d):
-                events[i].append(CorrectiveStep(self.components[component]))
-        self._corrective_direction[~corrective] = 0.0
-        if replace.any():
-            replaced = np.flatnonzero(replace)
-            self._replace(replaced, actions[replaced] - 1 - k, self.config.costs.replace_downtime, rngs, events)
-            costs["replacement"][replaced] += self.config.costs.replacement
-        return maintained
+        """Hand each kind's orders among ``orders`` (N,) to its handler and count their prices in the cost
+        ``items`` (rows, N); returns the systems maintained (N,) bool: given an order of a kind that maintains."""
+        previous, self._last_orders = self._last_orders, orders
+        carrying_on = orders == 0  # action 0 is carrying on
+        if carrying_on.all():  # the common step
+            return ~carrying_on
+        kinds = self._action_kind[orders]
+        for kind in np.unique(kinds).tolist():  # in the table's order
+            rows = np.flatnonzero(kinds == kind)
+            given = orders[rows]
+            self.handlers[kind].apply(Orders(rows, self._action_component[given], previous[rows] == given), rngs, events)
+            if self._cost_rows[kind] >= 0:
+                items[self._cost_rows[kind], rows] += self._prices[kind]
+        return self._action_maintains[orders]
 
     def _failures(
         self, running: np.ndarray, rngs: Sequence[np.random.Generator], costs: dict[str, np.ndarray], events: list[list[Event]]
@@ -231,10 +235,24 @@ class MaintenanceCore:
         for i, d in zip(broken, culprits):
             events[i].append(Failure(self.components[d], values[i, d], tuple(self.limits[d])))
         if self.config.continue_after_failure:
-            self._replace(broken, culprits, self.config.costs.failure_downtime, rngs, events)
+            self.replace(broken, culprits, self.config.costs.failure_downtime, rngs, events)
         return failed
 
-    def _replace(
+    # -- what the action handlers change (``ea_gym.env.actions.Machines``) --------------------------
+
+    def deviation(self, systems: np.ndarray, components: np.ndarray) -> np.ndarray:
+        """Nominal minus the true value of ``components[k]``'s parameter in ``systems[k]`` (SI)."""
+        columns = self._component_index[components]
+        return self.nominal[columns] - self._theta[systems, columns]
+
+    def adjust(self, systems: np.ndarray, components: np.ndarray, change: np.ndarray) -> None:
+        """Move ``components[k]``'s parameter in ``systems[k]`` by ``change[k]`` (SI); the chain's prognosis
+        logs it (the maintenance log: it knows what was done)."""
+        self._theta[systems, self._component_index[components]] += change
+        if self.chain is not None:
+            self.chain.record_adjustment(systems, components, change)
+
+    def replace(
         self, systems: np.ndarray, components: np.ndarray, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[Event]]
     ) -> None:
         """Put a new component ``components[k]`` in system ``systems[k]`` (distinct systems): nominal value,

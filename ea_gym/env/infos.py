@@ -2,21 +2,30 @@
 native vector and the stable-baselines3 environments.
 
 Keys: ``true_parameters`` (parameter name -> value), ``true_rul`` (s), ``cost`` (cost item -> the
-step's cost), ``failed`` (a parameter left its safe limits this step), ``events`` (the step's events'
-texts, see ``ea_gym.env.events``).
+step's cost: each action kind's item, failure, lost production and the total), ``failed`` (a
+parameter left its safe limits this step), ``events`` (the step's events' texts, see ``ea_gym.env.events``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from ea_gym.env.events import Event
+from ea_gym.env.events import ActionKind, Event
 
-COST_ITEMS = ("corrective", "replacement", "failure", "lost_production", "total")
+
+def cost_items(kinds: Iterable[ActionKind]) -> tuple[str, ...]:
+    """The cost items of an environment whose actions are of ``kinds``: each kind's item, in their order,
+    then failure and lost production (which no order buys), then the total."""
+    items = [kind.cost_item for kind in kinds if kind.cost_item is not None]
+    return (*dict.fromkeys(items), "failure", "lost_production", "total")
+
+
+#: the cost items of the environments' default action kinds (carry on, corrective action, replacement)
+COST_ITEMS = cost_items((ActionKind.CARRY_ON, ActionKind.CORRECTIVE, ActionKind.REPLACE))
 
 
 @dataclass(frozen=True)
@@ -27,7 +36,7 @@ class StepInfo:
         parameter_names: the model's parameters (P), in the columns' order.
         true_parameters: (N, P).
         true_rul: (N,), s.
-        costs: per cost item of ``COST_ITEMS``, (N,).
+        costs: per cost item (``cost_items``), (N,).
         failed: (N,) bool.
         events: N lists of events.
     """
@@ -40,11 +49,13 @@ class StepInfo:
     events: Sequence[Sequence[Event]]
 
     @classmethod
-    def at_reset(cls, parameter_names: tuple[str, ...], true_parameters: np.ndarray, true_rul: np.ndarray) -> StepInfo:
-        """After a reset: the true state, no cost, no failure, no event."""
+    def at_reset(
+        cls, parameter_names: tuple[str, ...], true_parameters: np.ndarray, true_rul: np.ndarray, items: Sequence[str]
+    ) -> StepInfo:
+        """After a reset: the true state, no cost in any of the cost ``items``, no failure, no event."""
         n = len(true_rul)
         return cls(
-            parameter_names, true_parameters, true_rul, {key: np.zeros(n) for key in COST_ITEMS}, np.zeros(n, dtype=bool),
+            parameter_names, true_parameters, true_rul, {key: np.zeros(n) for key in items}, np.zeros(n, dtype=bool),
             [[] for _ in range(n)],
         )
 

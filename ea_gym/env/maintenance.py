@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Sequence
 from typing import Any, SupportsInt, cast
 
 import gymnasium as gym
@@ -10,6 +11,7 @@ import numpy as np
 from gymnasium import spaces
 
 from ea_gym.diagnosis.classifier import FaultClassifier
+from ea_gym.env.actions import DEFAULT_ACTION_KINDS, HandlerFactory
 from ea_gym.env.config import EnvConfig, env_config
 from ea_gym.env.core import MaintenanceCore
 from ea_gym.env.observations import Observation
@@ -34,7 +36,8 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
 
     ## Action Space
 
-    `Discrete(1 + 2n)` for the n maintainable components (`env.unwrapped.action_meanings`):
+    `Discrete(1 + 2n)` for the n maintainable components (`env.unwrapped.action_meanings`; the typed
+    actions, `ea_gym.env.events.Action`, in `env.unwrapped.actions`):
 
     - 0: carry on
     - 1..n: corrective action on component i for this step: its parameter moves toward nominal (and
@@ -42,7 +45,8 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
     - n+1..2n: replace component i: back to nominal, `costs.replacement`, and `costs.replace_downtime`
       steps without production
 
-    Orders given while the machine is down are ignored.
+    Orders given while the machine is down are ignored. Each kind of action is done by its handler
+    (`ea_gym.env.actions`); `action_kinds` adds kinds after these, whose actions take the next indices.
 
     ## Observation Space
 
@@ -83,7 +87,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
 
     ```python
     gymnasium.make("ea_gym/BondGraphMaintenance-v0", system="spring_mass_damper", config=None,
-                   classifier=None, render_mode=None, **overrides)
+                   classifier=None, render_mode=None, action_kinds=DEFAULT_ACTION_KINDS, **overrides)
     ```
 
     - `config`: an `EnvConfig` (default `EnvConfig()`); every field can also be given as a keyword
@@ -99,6 +103,8 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
     - `wear`: `{component: WearConfig(...)}`; default every component with safe limits, linear drift.
     - `classifier`: a `FaultClassifier` or a path to one; default the network shipped for the system.
     - `render_mode`: `"rgb_array"` (recent EA, parameter estimate and RUL) or `"ansi"`.
+    - `action_kinds`: the handlers of the action kinds in use, carrying on first (see `ea_gym.env.actions`);
+      their order is the action table's.
 
     ## Version History
 
@@ -113,11 +119,12 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
         config: EnvConfig | None = None,
         classifier: FaultClassifier | str | None = None,
         render_mode: str | None = None,
+        action_kinds: Sequence[HandlerFactory] = DEFAULT_ACTION_KINDS,
         **overrides: Any,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        self.core = build_core(1, system, config, classifier, **overrides)
+        self.core = build_core(1, system, config, classifier, action_kinds, **overrides)
         self.config = self.core.config
         self.model = self.core.model
         self.render_mode = render_mode
@@ -179,11 +186,12 @@ def build_core(
     system: str | os.PathLike[str] | SystemModel = "spring_mass_damper",
     config: EnvConfig | None = None,
     classifier: FaultClassifier | str | os.PathLike[str] | None = None,
+    action_kinds: Sequence[HandlerFactory] = DEFAULT_ACTION_KINDS,
     **overrides: Any,
 ) -> MaintenanceCore:
     """The step core of N environments from the environments' arguments: the system (a built-in
-    model's name, a model file's path or a model), ``config`` with keyword ``overrides`` of its fields, and the classifier
-    (or a path to one)."""
+    model's name, a model file's path or a model), ``config`` with keyword ``overrides`` of its fields, the classifier
+    (or a path to one) and the handlers of the action kinds in use."""
     if isinstance(system, (str, os.PathLike)):
         try:
             system = load_system(system)
@@ -201,7 +209,7 @@ def build_core(
         classifier = FaultClassifier.load(classifier)
     elif classifier is not None and not isinstance(classifier, FaultClassifier):
         raise TypeError(f"classifier must be a FaultClassifier, a path to one or None, got {type(classifier).__name__}")
-    return MaintenanceCore(system, settings, n_systems, classifier)
+    return MaintenanceCore(system, settings, n_systems, classifier, action_kinds=action_kinds)
 
 
 def _first(batch: Observation) -> Observation:
