@@ -47,7 +47,7 @@ from ea_gym.models import SystemModel, get_model
 from ea_gym.phm import ESTIMATORS, HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
 from ea_gym.plant import run_model
 from ea_gym.pyplot import plt
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import add_sensor_noise
 
 SYSTEMS = ("spring_mass_damper", "rlc_circuit", "dc_motor")
 RESULTS = Path(__file__).resolve().parent / "results" / "builtin_systems"
@@ -92,7 +92,7 @@ def run_system(system: str, estimator: str, runs: int, duration: float, seed: in
     clean = []
     for load, parameters_at in zip(loads, ramps):
         plant = run_model(model, t, load, parameters_at)
-        clean.append(measure(chain.monitor, plant.parameters[None], plant.states[None], 0.0, rng)[0])
+        clean.append(chain.sensors.measure(plant.parameters[None], plant.states[None], 0.0, rng)[0])
     u = np.stack([load.value(t) for load in loads])
     du = np.stack([load.derivative(t) for load in loads])
     statuses = run_signals(chain, np.stack(clean), u, du, noise=lambda chunk: add_sensor_noise(chunk, NOISE, rng))

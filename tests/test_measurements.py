@@ -211,7 +211,7 @@ def test_the_reference_starts_from_the_state_fitted_to_the_first_step_not_from_o
     true = plant.states[2000]
     scale = np.ptp(plant.states, axis=0)
     fitted_error = np.abs(fitted - true) / scale
-    sample = record.signals[2000] / chain.monitor.measurement_gain(MODEL.parameter_vector())
+    sample = record.signals[2000] / chain.sensors.gain(MODEL.parameter_vector())
     sample_error = np.abs(sample - true) / scale  # 2.0e-3 and 0.8e-3 of the ranges here
     assert np.all(fitted_error < 1e-3) and fitted_error.max() < 0.5 * sample_error.max()  # 0.45e-3, 0.35e-3
 

@@ -26,7 +26,7 @@ from ea_gym.phm import (
 from ea_gym.plant import run_model
 from ea_gym.reproduce import LOADS, phase_eol
 from ea_gym.scenario import load_scenario
-from ea_gym.sensors import measure
+from ea_gym.sensors import Sensors
 
 MODEL = spring_mass_damper()
 PERSISTENT = LOADS["persistent"]
@@ -194,7 +194,7 @@ def test_monitor_residuals_vanish_without_fault_and_noise():
     scenario = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=30.0)
     trajectory = run_model(MODEL, t, scenario.make_load())
     monitor = Monitor(MODEL, 0.01)
-    signals = measure(monitor, MODEL.parameter_vector()[None], trajectory.states[None], 0.0, np.random.default_rng(0))
+    signals = Sensors(MODEL).measure(MODEL.parameter_vector()[None], trajectory.states[None], 0.0, np.random.default_rng(0))
     load = scenario.make_load().value(t)[None]
     for start in range(0, 3000, 100):
         part = slice(start, start + 101)
@@ -211,8 +211,8 @@ def test_energy_balance_deviation_points_at_a_stiffness_fault_without_noise():
     nominal = run_model(MODEL, t, scenario.make_load())
     monitor = Monitor(MODEL, 0.01)
     rng = np.random.default_rng(0)
-    measured = measure(monitor, theta[None], faulty.states[None], 0.0, rng)
-    expected = measure(monitor, MODEL.parameter_vector()[None], nominal.states[None], 0.0, rng)
+    measured = Sensors(MODEL).measure(theta[None], faulty.states[None], 0.0, rng)
+    expected = Sensors(MODEL).measure(MODEL.parameter_vector()[None], nominal.states[None], 0.0, rng)
     load = scenario.make_load().value(t)[None]
     windows = [monitor.update(measured[..., s : s + 101], expected[..., s : s + 101], load[:, s : s + 101]) for s in range(0, 4000, 100)]
     frame = monitor.frame(windows[10:])
@@ -234,7 +234,7 @@ def _noise_free_window(k, config=None):
     theta = MODEL.parameter_vector({"k": k})
     trajectory = run_model(MODEL, t, load, lambda s: np.broadcast_to(theta, s.shape + theta.shape), np.array([0.3, 0.12]))
     monitor = Monitor(MODEL, 0.01)
-    signals = measure(monitor, theta[None], trajectory.states[None], 0.0, np.random.default_rng(0))
+    signals = Sensors(MODEL).measure(theta[None], trajectory.states[None], 0.0, np.random.default_rng(0))
     estimator = EAInversion(monitor, EstimatorConfig() if config is None else config)
     c = monitor.config.smoothing
     power, _ = monitor.powers(np.concatenate([signals, load.value(t)[None, None]], axis=1)[..., c:], c)
@@ -343,7 +343,7 @@ def test_recorded_signals_run_through_the_chain_against_a_simulated_nominal_refe
     plant = run_model(MODEL, t, load, scenario.parameters_at)
     rng = np.random.default_rng(3)
     chain = build_chain(MODEL, PHMConfig(noise=0.01), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
-    measured = measure(chain.monitor, plant.parameters[None], plant.states[None], 0.01, rng)
+    measured = chain.sensors.measure(plant.parameters[None], plant.states[None], 0.01, rng)
     statuses = run_signals(chain, measured, load.value(t)[None], load.derivative(t)[None])
     assert len(statuses) == 40 and statuses[-1].t[0] == pytest.approx(40.0)
     assert statuses[-1].alarm[0] and chain.classes[statuses[-1].isolated[0]] == "k"

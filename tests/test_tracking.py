@@ -20,7 +20,7 @@ from ea_gym.phm.estimation import ParameterEstimates, ParameterEstimator, StepSi
 from ea_gym.phm.prognosis import drift_end_of_life
 from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
 from ea_gym.plant import run_model
-from ea_gym.sensors import measure
+from ea_gym.sensors import Sensors
 
 RATE = 100.0
 
@@ -123,7 +123,7 @@ def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, 
     load = SinesLoad(model.nominal_load, tuple(Sine(a * model.nominal_load, b * f) for a, b in ((0.4, 0.125), (0.2, 0.35), (0.1, 0.7))))
     plant = run_model(model, t, load, parameters)
     rng = np.random.default_rng(seed)
-    clean = measure(Monitor(model, 1 / RATE), plant.parameters[None], plant.states[None], noise, rng)
+    clean = Sensors(model).measure(plant.parameters[None], plant.states[None], noise, rng)
     u, du = load.value(t)[None], load.derivative(t)[None]
     step = int(RATE)
     return model, [

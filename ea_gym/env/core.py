@@ -78,7 +78,7 @@ class MaintenanceCore:
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
-        self.operation = Operation(model, self.monitor, n_systems, config.sample_rate, config.window, config.noise, config.load_std)
+        self.operation = Operation(model, n_systems, config.sample_rate, config.window, config.noise, config.load_std)
         self.h, self.samples = self.operation.h, self.operation.samples
         self.actions = action_table(self.components)
         self.action_meanings = tuple(map(str, self.actions))

@@ -27,6 +27,7 @@ from ea_gym.phm.estimators import make_stages
 from ea_gym.phm.history import MonitorHistory
 from ea_gym.phm.isolation import Isolation
 from ea_gym.phm.prognosis import EndOfLife
+from ea_gym.sensors import Sensors
 
 
 @dataclass(frozen=True)
@@ -113,6 +114,7 @@ class PHMChain:
         if tuple(classifier.classes) != self.classes:
             raise ValueError(f"classifier classes {classifier.classes} do not match the model's {self.classes}")
         self.degradable = self.classes[1:]
+        self.sensors = Sensors(model)  # how the plant and the reference are measured
         self.monitor = Monitor(model, self.h, config.monitor, n_systems)
         self.step_samples = window_samples(config.step, self.h)
         self.step_time = config.update_time

@@ -22,7 +22,7 @@ from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.history import MonitorHistory, rows_of
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import Sensors, add_sensor_noise
 from ea_gym.threads import over_rows
 
 if TYPE_CHECKING:
@@ -156,7 +156,7 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
     nominal = np.repeat(model.parameter_vector()[None], runs, 0)
     states = simulate_batch(model.state_space, h, *model.source_inputs(u, du), nominal, np.zeros((runs, len(model.state_names))))
     monitor = Monitor(model, h, config.monitor, runs)
-    clean = measure(monitor, nominal, states, 0.0, rng)
+    clean = Sensors(model).measure(nominal, states, 0.0, rng)
     step = window_samples(config.step, h)
     subs = window_samples(config.detector.window, config.monitor.sub_window)
     windows = []

@@ -25,6 +25,7 @@ from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
+from ea_gym.sensors import Sensors
 
 
 @numba.njit(cache=True)
@@ -119,6 +120,7 @@ class EAInversion:
         self.monitor = monitor
         self.model: SystemModel = monitor.model
         self.config = config
+        self.sensors = Sensors(self.model)
         self.context = monitor.config.smoothing
         self._components = np.array([monitor.elements.index(c) for c in monitor.components])
         self._sources = np.array([monitor.elements.index(u) for u in self.model.state_space.input_names])
@@ -167,7 +169,7 @@ class EAInversion:
         theta = np.repeat(self.model.parameter_vector()[None, None], n, 0).repeat(g, 1)
         theta[np.arange(n), :, parameter_index] = values
         theta = theta.reshape(n * g, -1)
-        to_signal = self.monitor.measurement_gain(theta)
+        to_signal = self.sensors.gain(theta)
         x0 = np.repeat(start, g, 0) / to_signal
         uu, duu = self.model.source_inputs(np.repeat(u, g, 0), np.repeat(du, g, 0))
         # the measured signals, then the load: (n g, nx + 1, T)
