@@ -44,7 +44,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ea_gym.diagnosis.database import draw_loads
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.models import SystemModel, get_model
-from ea_gym.phm import ESTIMATORS, HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm import ESTIMATORS, ChainTiming, HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
 from ea_gym.plant import run_model
 from ea_gym.pyplot import plt
 from ea_gym.sensors import add_sensor_noise
@@ -84,9 +84,9 @@ def run_system(system: str, estimator: str, runs: int, duration: float, seed: in
     model = get_model(system)
     rng = np.random.default_rng(seed)
     rows = plan(model, runs, rng)
-    config = PHMConfig(noise=NOISE, estimator_kind=estimator)
+    config = PHMConfig(timing=ChainTiming(noise=NOISE), estimator_kind=estimator)
     chain = build_chain(model, config, classifier_for(model), rng, n_systems=len(rows))
-    t = np.arange(int(round(duration * config.sample_rate)) + 1) / config.sample_rate
+    t = np.arange(int(round(duration * config.timing.sample_rate)) + 1) / config.timing.sample_rate
     loads = draw_loads(model, len(rows), rng)
     ramps = [ramp(model, parameter, limit, duration) for parameter, limit in rows]
     clean = []

@@ -56,8 +56,7 @@ from ea_gym.energy import window_samples
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import estimation_errors
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for, run_signals
-from ea_gym.phm.estimators import ESTIMATORS
+from ea_gym.phm import ESTIMATORS, ChainTiming, PHMChain, PHMConfig, build_chain, classifier_for, run_signals
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
@@ -239,7 +238,7 @@ def run_chain(chain: PHMChain, signals: Signals, parameter: str) -> Track:
 
 def chain_config(scenario: Scenario, estimator: str | None) -> PHMConfig:
     """The chain's settings at the scenario's noise, with the ``estimator`` kind (None: the default)."""
-    config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
+    config = PHMConfig(timing=ChainTiming(sample_rate=scenario.sample_rate, noise=scenario.noise))
     return config if estimator is None else replace(config, estimator_kind=estimator)
 
 

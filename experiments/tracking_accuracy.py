@@ -29,9 +29,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from ea_gym.models import get_model
+from ea_gym.phm.config import ExtrapolationConfig, TrackingConfig
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals
-from ea_gym.phm.prognosis import DriftPrognosis, ExtrapolationConfig
-from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
+from ea_gym.phm.prognosis import DriftPrognosis
+from ea_gym.phm.tracking import TrackingEstimator
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
@@ -89,7 +90,7 @@ def true_end_of_life(scenario: Scenario) -> tuple[float, float]:
 
 
 def chain_prognosis(estimator: TrackingEstimator) -> DriftPrognosis:
-    """The chain's prognosis stage for ``estimator`` (``ea_gym.phm.estimators.tracking_stages``)."""
+    """The chain's prognosis stage for ``estimator`` (``ea_gym.phm.tracking.tracking_stages``)."""
     return DriftPrognosis(estimator.model, estimator.degradable, ExtrapolationConfig(), estimator.diffusion, estimator.n)
 
 

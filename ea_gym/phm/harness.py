@@ -16,7 +16,7 @@ from ea_gym.measurements import Measurements
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.chain import HealthStatus, PHMChain
-from ea_gym.phm.config import PHMConfig
+from ea_gym.phm.config import ChainTiming, PHMConfig
 from ea_gym.phm.thresholds import thresholds_for
 from ea_gym.plant import Trajectory, run_model
 from ea_gym.scenario import Scenario
@@ -147,7 +147,7 @@ def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, 
     expected = chain.sensors.measure(nominal, reference.states[None], 0.0, rng)
     statuses = run_signals(
         chain, clean, load.value(t)[None], load.derivative(t)[None], expected,
-        noise=lambda chunk: add_sensor_noise(chunk, chain.config.noise, rng), progress=progress,
+        noise=lambda chunk: add_sensor_noise(chunk, chain.config.timing.noise, rng), progress=progress,
     )
     index = np.round(np.array([s.t[0] for s in statuses]) * scenario.sample_rate).astype(int)
     return ChainRun.of(statuses, plant.parameters[index])
@@ -155,10 +155,10 @@ def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, 
 
 def scenario_measurements(scenario: Scenario, rng: np.random.Generator) -> Measurements:
     """What the sensors of ``scenario``'s plant record: its load and every storage element's signal with
-    the scenario's sensor noise (its std a fraction of each signal's RMS over each step of ``PHMConfig().step``)."""
+    the scenario's sensor noise (its std a fraction of each signal's RMS over each step of ``ChainTiming().step``)."""
     h = 1.0 / scenario.sample_rate
     plant, clean = _plant_signals(scenario, Sensors(scenario.model), rng)
-    step = window_samples(PHMConfig().step, h)
+    step = window_samples(ChainTiming().step, h)
     noisy = np.concatenate([add_sensor_noise(clean[..., s : s + step], scenario.noise, rng) for s in range(0, clean.shape[-1], step)], -1)
     return Measurements(t=plant.t, load=scenario.make_load().value(plant.t), signals=noisy[0].T)
 
@@ -286,11 +286,12 @@ class StreamingChain:
 def check_duration(measurements: Measurements, config: PHMConfig) -> None:
     """Refuse a record that does not last one detection window (``DetectorConfig.window``), before any
     chain is built for it."""
-    needed = max(config.step, config.detector.window)
-    if measurements.duration < needed - 0.5 / config.sample_rate:
+    timing = config.timing
+    needed = max(timing.step, config.detector.window)
+    if measurements.duration < needed - 0.5 / timing.sample_rate:
         raise ValueError(
             f"measurements: the record lasts {measurements.duration:g} s; the chain needs at least {needed:g} s "
-            f"(one detection window), i.e. {round(needed * config.sample_rate) + 1} samples at {config.sample_rate:g} Hz"
+            f"(one detection window), i.e. {round(needed * timing.sample_rate) + 1} samples at {timing.sample_rate:g} Hz"
         )
 
 
@@ -314,7 +315,7 @@ def run_measurements(chain: PHMChain, measurements: Measurements, progress: Prog
 def build_chain(
     model: SystemModel, config: PHMConfig, classifier: FaultClassifier, rng: np.random.Generator, n_systems: int = 1
 ) -> PHMChain:
-    """A chain for ``model`` with its detection thresholds calibrated at ``config.noise`` (or read from the cache: see
+    """A chain for ``model`` with its detection thresholds calibrated at ``config.timing.noise`` (or read from the cache: see
     :func:`~ea_gym.phm.thresholds.thresholds_for`)."""
     return PHMChain(model, classifier, thresholds_for(model, config, rng), config, n_systems)
 
