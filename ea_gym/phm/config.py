@@ -1,19 +1,15 @@
 """The PHM chain's settings: one frozen section per stage, a timing record they share, and ``PHMConfig`` gathering them.
 
-Each stage reads its own section and the shared :class:`ChainTiming` only:
+Each stage reads its own section and the shared :class:`ChainTiming` only. ``PHMConfig``'s fields:
 
-=====================  ===========================  ==================================================
-``PHMConfig`` field    section                      read by
-=====================  ===========================  ==================================================
-``timing``             :class:`ChainTiming`         every stage: step, clock, sample rate, noise level
-``monitor``            ``MonitorConfig``            the EA monitor (``ea_gym.diagnosis.monitor``)
-``detector``           :class:`DetectorConfig`      :mod:`~ea_gym.phm.detection` and its calibration
-``isolation``          :class:`IsolationConfig`     :mod:`~ea_gym.phm.isolation` (network, balance, fusion)
-``estimator_kind``     a registered name            :mod:`~ea_gym.phm.registry` picks the estimator
-``inversion``          :class:`InversionConfig`     the "ea_inversion" estimator
-``tracking``           :class:`TrackingConfig`      the "tracking" estimator
-``extrapolation``      :class:`ExtrapolationConfig` :mod:`~ea_gym.phm.prognosis`
-=====================  ===========================  ==================================================
+* ``timing`` (:class:`ChainTiming`): step, clock, sample rate and noise level, read by every stage;
+* ``estimator_kind``: the parameter estimator's name in :mod:`~ea_gym.phm.registry`;
+* ``monitor`` (``ea_gym.diagnosis.monitor.MonitorConfig``): the EA monitor's signal processing;
+* ``detector`` (:class:`DetectorConfig`): :mod:`~ea_gym.phm.detection` and its thresholds' calibration;
+* ``isolation`` (:class:`IsolationConfig`): :mod:`~ea_gym.phm.isolation`, the network, the balance evidence, the fusion;
+* ``inversion`` (:class:`InversionConfig`): the "ea_inversion" estimator (:mod:`~ea_gym.phm.inversion_estimator`);
+* ``tracking`` (:class:`TrackingConfig`): the "tracking" estimator (:mod:`~ea_gym.phm.tracking`);
+* ``extrapolation`` (:class:`ExtrapolationConfig`): :mod:`~ea_gym.phm.prognosis`, the estimate carried to the limits.
 
 An estimator's section is read only when that estimator is chosen. Example::
 

@@ -19,8 +19,10 @@ and attributes) and one registration line on its builder. A particle filter, say
     # my_package/particle_filter.py
     from ea_gym.phm import DriftPrognosis, EstimationStages, register_estimator
 
-    class ParticleFilter:
-        ...  # degradable, warmup_steps, lag, reset, record_adjustment, restart, update
+    class ParticleFilter:  # each degradable parameter and its drift followed with particles
+        def __init__(self, model, timing, n_systems): ...
+        # ParameterEstimator's attributes and methods: degradable, lag, warmup_steps, reset,
+        # record_adjustment, restart, update; and, for DriftPrognosis, diffusion (D,)
 
     @register_estimator("particle_filter")
     def particle_filter_stages(model, monitor, config, n_systems):
