@@ -61,10 +61,7 @@ class Sensors:
 
     def gain(self, parameters: np.ndarray) -> np.ndarray:
         """The diagonal of ``matrix`` under ``parameters`` (..., P): (..., nx), 1 / I on each I element's momentum, 1 elsewhere."""
-        diagonal = np.ones(np.shape(parameters)[:-1] + (len(self.signals),))
-        for j, p in self.momenta:
-            diagonal[..., j] = 1.0 / parameters[..., p]
-        return diagonal
+        return 1.0 / self.inverse_gain(parameters)
 
     def inverse_gain(self, parameters: np.ndarray) -> np.ndarray:
         """Per signal, the factor (..., nx) that turns it back into its energy variable: I on a momentum, 1 elsewhere."""

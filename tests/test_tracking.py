@@ -18,7 +18,7 @@ from ea_gym.models import get_model, spring_mass_damper
 from ea_gym.phm.config import ChainTiming, PHMConfig, TrackingConfig
 from ea_gym.phm.estimation import ParameterEstimates, ParameterEstimator, StepSignals
 from ea_gym.phm.prognosis import drift_end_of_life
-from ea_gym.phm.tracking import TrackingEstimator
+from ea_gym.phm.tracking import TrackingEstimator, tracking_stages
 from ea_gym.plant import run_model
 from ea_gym.sensors import Sensors
 
@@ -277,7 +277,7 @@ def test_behind_the_chains_seam() -> None:
     """The chain's constructor arguments give the chain's sample rate, noise and isolation classes."""
     model = spring_mass_damper()
     config = PHMConfig(timing=ChainTiming(sample_rate=RATE, noise=0.01))
-    estimator: ParameterEstimator = TrackingEstimator.from_chain(model, Monitor(model, 1 / RATE), config, 3)
+    estimator: ParameterEstimator = tracking_stages(model, Monitor(model, 1 / RATE), config, 3).estimator
     assert estimator.degradable == classes_of(model)[1:]
     assert isinstance(estimator, TrackingEstimator) and estimator.noise == 0.01 and estimator.h == 1 / RATE
 

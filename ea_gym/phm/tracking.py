@@ -221,11 +221,6 @@ class TrackingEstimator:
         self._estimated = np.ones((n_systems, len(self.degradable)), dtype=bool)
         self._estimated.flags.writeable = False
 
-    @classmethod
-    def from_chain(cls, model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> TrackingEstimator:
-        """The chain's tracking estimator: its sample rate, noise level and ``PHMConfig.tracking`` settings."""
-        return cls(model, config.timing.sample_rate, config.timing.noise, n_systems, config=config.tracking)
-
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Start over for all systems, or those where the boolean mask (N,) is true: their filters
         restart, at nominal, from their next step."""
@@ -314,7 +309,8 @@ TRACKING_WEIGHTS = EvidenceWeights(estimator=0.05, network=0.25, balance=0.1)
 
 @register_estimator("tracking")
 def tracking_stages(model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> EstimationStages:
-    """The tracking filter bank and its drift carried to the limits (``config.tracking``, ``config.extrapolation``)."""
-    estimator = TrackingEstimator.from_chain(model, monitor, config, n_systems)
+    """The tracking filter bank at the chain's sample rate and noise level (``config.timing``, ``config.tracking``) and
+    its drift carried to the limits (``config.extrapolation``)."""
+    estimator = TrackingEstimator(model, config.timing.sample_rate, config.timing.noise, n_systems, config=config.tracking)
     prognosis = DriftPrognosis(model, estimator.degradable, config.extrapolation, estimator.diffusion, n_systems)
     return EstimationStages(estimator, prognosis, TRACKING_WEIGHTS)
