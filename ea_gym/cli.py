@@ -104,11 +104,11 @@ def _phm(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ea_gym.phm import PHMConfig, build_chain, classifier_for, run_scenario
+    from ea_gym.phm import ChainTiming, PHMConfig, build_chain, classifier_for, run_scenario
     from ea_gym.reporting import write_phm_outputs
 
     rng = np.random.default_rng(scenario.sensor_seed)
-    config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
+    config = PHMConfig(timing=ChainTiming(sample_rate=scenario.sample_rate, noise=scenario.noise))
     classifier = classifier_for(model, args.classifier)
     chain = build_chain(model, config, classifier, rng)
     run = run_scenario(scenario, chain, rng, progress=_progress)
@@ -174,7 +174,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     from ea_gym.energy import window_samples
     from ea_gym.measurements import noise_estimate, read_measurements
     from ea_gym.model_files import load_system
-    from ea_gym.phm import PHMConfig, build_chain, check_duration, classifier_for, run_measurements
+    from ea_gym.phm import ChainTiming, PHMConfig, build_chain, check_duration, classifier_for, run_measurements
     from ea_gym.reporting import write_phm_outputs
 
     if args.system is None:
@@ -182,11 +182,11 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     model = load_system(args.system)
     model.check_degradable()
     measurements = read_measurements(args.measurements, model)
-    check_duration(measurements, PHMConfig(sample_rate=measurements.sample_rate))  # before the calibration and the network
+    check_duration(measurements, PHMConfig(timing=ChainTiming(sample_rate=measurements.sample_rate)))  # before the calibration and the network
     # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
-    estimate = noise_estimate(measurements, window_samples(PHMConfig().step, 1.0 / measurements.sample_rate))
+    estimate = noise_estimate(measurements, window_samples(ChainTiming().step, 1.0 / measurements.sample_rate))
     noise = estimate if args.noise is None else args.noise
-    config = PHMConfig(sample_rate=measurements.sample_rate, noise=noise)
+    config = PHMConfig(timing=ChainTiming(sample_rate=measurements.sample_rate, noise=noise))
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
     chain = build_chain(model, config, classifier_for(model, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)

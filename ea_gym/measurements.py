@@ -179,7 +179,7 @@ def _check_times(path: Path, t: np.ndarray) -> None:
 
 
 def noise_estimate(measurements: Measurements, step: int, window: int = 21, order: int = 3) -> float:
-    """The sensors' noise in the record as ``PHMConfig.noise`` reads it: a std, as a fraction of each
+    """The sensors' noise in the record as ``ChainTiming.noise`` (``ea_gym.phm.config``) reads it: a std, as a fraction of each
     signal's RMS over a step of ``step`` samples (the chain's 1 s).
 
     Per signal: the residual of a Savitzky-Golay smoother (``window`` samples, polynomial ``order``),

@@ -20,7 +20,7 @@ import numpy as np
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.files import write_json, write_text
 from ea_gym.models import spring_mass_damper
-from ea_gym.phm import ChainRun, PHMChain, PHMConfig, build_chain, run_scenario
+from ea_gym.phm import ChainRun, ChainTiming, PHMChain, PHMConfig, build_chain, run_scenario
 from ea_gym.reporting import write_phm_outputs
 from ea_gym.scenario import Scenario, load_scenario
 
@@ -126,7 +126,7 @@ def reproduce(
     for name, load, noise in RUNS:
         progress(f"running the chain: {name}")
         scenario = paper_scenario(load, noise)
-        chain = build_chain(model, PHMConfig(noise=noise), classifier, np.random.default_rng(seed))
+        chain = build_chain(model, PHMConfig(timing=ChainTiming(noise=noise)), classifier, np.random.default_rng(seed))
         run = run_scenario(scenario, chain, np.random.default_rng(seed + 1))
         results = write_phm_outputs(out / name, run, chain, scenario, f"Paper section 4, {load} load, noise {noise:.0%}")
         fault = phase_eol(run, chain, scenario, 5.0, CORRECTIVE_START, after=30.0)

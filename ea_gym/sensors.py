@@ -1,24 +1,32 @@
-"""Sensors: the measured signals of a system from its true energy variables, with white noise.
+"""Sensors: the measurement model of a system, and the sensors' white noise.
 
-Every sensor reads one energy variable's conjugate signal through the monitor's measurement matrix
-(an I element's flow, a C element's displacement) and adds white Gaussian noise whose std is a fixed
-fraction of that signal's RMS over the window. ``add_sensor_noise`` draws from one generator;
-``SystemNoise`` draws the same numbers for N systems at once, system i from its own generator.
+Every storage element has one sensor. It reads its energy variable's co-energy side: an I element's
+flow f = p / I (a velocity, a current) and a C element's displacement q itself (a position, a
+charge). ``Sensors(model)`` holds which signals are measured and the measurement matrix that maps the
+energy variables to them under given parameter values; the plant, the monitor, the PHM chain, the
+fault database and the environments all measure through it.
+
+The noise is white and Gaussian, its std a fixed fraction of each signal's RMS over the window.
+``add_sensor_noise`` draws from one generator; ``SystemNoise`` draws the same numbers for N systems
+at once, system i from its own generator.
+
+Example::
+
+    sensors = Sensors(model)
+    signals = sensors.measure(parameters, states, noise=0.01, rng=np.random.default_rng(0))
 """
 
 from __future__ import annotations
 
 import operator
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ea_gym._kernels.normal import bit_generator_addresses, noisy_rows
+from ea_gym.bondgraph.elements import Kind
+from ea_gym.models import SystemModel
 from ea_gym.threads import over_rows
-
-if TYPE_CHECKING:
-    from ea_gym.diagnosis.monitor import Monitor
 
 
 def add_sensor_noise(signals: np.ndarray, fraction: float | np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -32,14 +40,49 @@ def add_sensor_noise(signals: np.ndarray, fraction: float | np.ndarray, rng: np.
     return signals + fraction * rms * rng.standard_normal(signals.shape)
 
 
-def measure(monitor: Monitor, parameters: np.ndarray, states: np.ndarray, noise: float, rng: np.random.Generator) -> np.ndarray:
-    """Sensor signals (N, nx, T) from true energy variables (N, T, nx) under true ``parameters`` (N, P) or (N, T, P)."""
-    matrix = monitor.measurement_matrix(parameters)
-    if matrix.ndim == 3:
-        clean = np.einsum("nij,ntj->nit", matrix, states)
-    else:
-        clean = np.einsum("ntij,ntj->nit", matrix, states)
-    return add_sensor_noise(clean, noise, rng)
+class Sensors:
+    """The measurement model of ``model``: one sensor per energy variable, in ``model.state_names`` order.
+
+    The matrix is diagonal: 1 / I on each I element's momentum (its sensor reads the flow p / I,
+    m/s or A), 1 on each C element's displacement (m or C).
+
+    Attributes:
+        signals: the measured signals, named after the storage element each sensor reads.
+        momenta: (state index, parameter index) of every I element's momentum, read as p / I.
+    """
+
+    def __init__(self, model: SystemModel):
+        space = model.state_space
+        elements = model.graph.elements
+        self.signals: tuple[str, ...] = tuple(space.state_names)
+        self.momenta: tuple[tuple[int, int], ...] = tuple(
+            (j, space.parameter_names.index(name)) for j, name in enumerate(space.state_names) if elements[name].kind is Kind.I
+        )
+
+    def gain(self, parameters: np.ndarray) -> np.ndarray:
+        """The diagonal of ``matrix`` under ``parameters`` (..., P): (..., nx), 1 / I on each I element's momentum, 1 elsewhere."""
+        return 1.0 / self.inverse_gain(parameters)
+
+    def inverse_gain(self, parameters: np.ndarray) -> np.ndarray:
+        """Per signal, the factor (..., nx) that turns it back into its energy variable: I on a momentum, 1 elsewhere."""
+        factor = np.ones(np.shape(parameters)[:-1] + (len(self.signals),))
+        for j, p in self.momenta:
+            factor[..., j] = parameters[..., p]
+        return factor
+
+    def matrix(self, parameters: np.ndarray) -> np.ndarray:
+        """Rows map energy variables to measured signals under true ``parameters`` (..., P): (..., nx, nx)."""
+        return self.gain(parameters)[..., :, None] * np.eye(len(self.signals))
+
+    def measure(self, parameters: np.ndarray, states: np.ndarray, noise: float, rng: np.random.Generator) -> np.ndarray:
+        """Sensor signals (N, nx, T) from true energy variables (N, T, nx) under true ``parameters`` (N, P) or (N, T, P),
+        with noise of std ``noise`` x each signal's RMS."""
+        matrix = self.matrix(parameters)
+        if matrix.ndim == 3:
+            clean = np.einsum("nij,ntj->nit", matrix, states)
+        else:
+            clean = np.einsum("ntij,ntj->nit", matrix, states)
+        return add_sensor_noise(clean, noise, rng)
 
 
 class SystemNoise:

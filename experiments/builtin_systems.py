@@ -44,10 +44,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from ea_gym.diagnosis.database import draw_loads
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.models import SystemModel, get_model
-from ea_gym.phm import ESTIMATORS, HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm import ESTIMATORS, ChainTiming, HealthStatus, PHMConfig, build_chain, classifier_for, run_signals
 from ea_gym.plant import run_model
 from ea_gym.pyplot import plt
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import add_sensor_noise
 
 SYSTEMS = ("spring_mass_damper", "rlc_circuit", "dc_motor")
 RESULTS = Path(__file__).resolve().parent / "results" / "builtin_systems"
@@ -84,15 +84,15 @@ def run_system(system: str, estimator: str, runs: int, duration: float, seed: in
     model = get_model(system)
     rng = np.random.default_rng(seed)
     rows = plan(model, runs, rng)
-    config = PHMConfig(noise=NOISE, estimator_kind=estimator)
+    config = PHMConfig(timing=ChainTiming(noise=NOISE), estimator_kind=estimator)
     chain = build_chain(model, config, classifier_for(model), rng, n_systems=len(rows))
-    t = np.arange(int(round(duration * config.sample_rate)) + 1) / config.sample_rate
+    t = np.arange(int(round(duration * config.timing.sample_rate)) + 1) / config.timing.sample_rate
     loads = draw_loads(model, len(rows), rng)
     ramps = [ramp(model, parameter, limit, duration) for parameter, limit in rows]
     clean = []
     for load, parameters_at in zip(loads, ramps):
         plant = run_model(model, t, load, parameters_at)
-        clean.append(measure(chain.monitor, plant.parameters[None], plant.states[None], 0.0, rng)[0])
+        clean.append(chain.sensors.measure(plant.parameters[None], plant.states[None], 0.0, rng)[0])
     u = np.stack([load.value(t) for load in loads])
     du = np.stack([load.derivative(t) for load in loads])
     statuses = run_signals(chain, np.stack(clean), u, du, noise=lambda chunk: add_sensor_noise(chunk, NOISE, rng))

@@ -52,16 +52,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from ea_gym.diagnosis.monitor import Monitor, MonitorConfig
 from ea_gym.energy import window_samples
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import estimation_errors
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, build_chain, classifier_for, run_signals
-from ea_gym.phm.estimators import ESTIMATORS
+from ea_gym.phm import ESTIMATORS, ChainTiming, PHMChain, PHMConfig, build_chain, classifier_for, run_signals
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import Sensors, add_sensor_noise
 
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
@@ -115,9 +113,9 @@ def record_signals(scenario: Scenario, rng: np.random.Generator) -> Signals:
     x0 = scenario.initial_state_vector()
     plant = run_model(model, t, load, scenario.parameters_at, x0)
     reference = run_model(model, t, load, None, x0)
-    monitor = Monitor(model, 1.0 / scenario.sample_rate, MonitorConfig(), 1)
-    clean = measure(monitor, plant.parameters[None], plant.states[None], 0.0, rng)[0]
-    expected = measure(monitor, model.parameter_vector()[None], reference.states[None], 0.0, rng)[0]
+    sensors = Sensors(model)
+    clean = sensors.measure(plant.parameters[None], plant.states[None], 0.0, rng)[0]
+    expected = sensors.measure(model.parameter_vector()[None], reference.states[None], 0.0, rng)[0]
     step = window_samples(STEP, 1.0 / scenario.sample_rate)
     windows = [add_sensor_noise(clean[:, start : start + step + 1], scenario.noise, rng) for start in range(0, len(t) - step, step)]
     return Signals(t, clean, np.stack(windows), expected, load.value(t), load.derivative(t), plant.parameters, step)
@@ -240,7 +238,7 @@ def run_chain(chain: PHMChain, signals: Signals, parameter: str) -> Track:
 
 def chain_config(scenario: Scenario, estimator: str | None) -> PHMConfig:
     """The chain's settings at the scenario's noise, with the ``estimator`` kind (None: the default)."""
-    config = PHMConfig(sample_rate=scenario.sample_rate, noise=scenario.noise)
+    config = PHMConfig(timing=ChainTiming(sample_rate=scenario.sample_rate, noise=scenario.noise))
     return config if estimator is None else replace(config, estimator_kind=estimator)
 
 

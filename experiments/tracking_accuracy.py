@@ -28,14 +28,14 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import get_model
+from ea_gym.phm.config import ExtrapolationConfig, TrackingConfig
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals
-from ea_gym.phm.prognosis import DriftPrognosis, ExtrapolationConfig
-from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
+from ea_gym.phm.prognosis import DriftPrognosis
+from ea_gym.phm.tracking import TrackingEstimator
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import Sensors, add_sensor_noise
 
 SCENARIOS = Path(__file__).resolve().parent / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
@@ -67,7 +67,7 @@ def scenario_signals(scenario: Scenario, seed: int) -> Signals:
     load = scenario.make_load()
     plant = run_model(model, t, load, scenario.parameters_at, scenario.initial_state_vector())
     rng = np.random.default_rng(seed)
-    clean = measure(Monitor(model, 1.0 / scenario.sample_rate), plant.parameters[None], plant.states[None], 0.0, rng)
+    clean = Sensors(model).measure(plant.parameters[None], plant.states[None], 0.0, rng)
     u, du = load.value(t)[None], load.derivative(t)[None]
     step = int(round(STEP * scenario.sample_rate))
     starts = list(range(0, len(t) - step, step))
@@ -90,7 +90,7 @@ def true_end_of_life(scenario: Scenario) -> tuple[float, float]:
 
 
 def chain_prognosis(estimator: TrackingEstimator) -> DriftPrognosis:
-    """The chain's prognosis stage for ``estimator`` (``ea_gym.phm.estimators.tracking_stages``)."""
+    """The chain's prognosis stage for ``estimator`` (``ea_gym.phm.tracking.tracking_stages``)."""
     return DriftPrognosis(estimator.model, estimator.degradable, ExtrapolationConfig(), estimator.diffusion, estimator.n)
 
 

@@ -23,11 +23,11 @@ from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.training import IsolationTraining, cached_isolation_path, isolation_network, shipped_classifier_path
 from ea_gym.env.config import EnvConfig
 from ea_gym.models import MODELS, get_model, spring_mass_damper
-from ea_gym.phm import DetectorConfig, PHMConfig, calibrate_thresholds, thresholds_for
+from ea_gym.phm import ChainTiming, DetectorConfig, IsolationConfig, PHMConfig, calibrate_thresholds, thresholds_for
 from ea_gym.phm.thresholds import calibration_key, shipped_thresholds
 
 # a short calibration (2 runs of 20 s) keeps these tests to seconds; the logic does not depend on the length
-SHORT = PHMConfig(noise=0.01, detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
+SHORT = PHMConfig(timing=ChainTiming(noise=0.01), detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
 
 
 @pytest.fixture(autouse=True)
@@ -49,12 +49,13 @@ def test_the_key_follows_what_the_result_depends_on() -> None:
     # equal inputs built anew, and changes that no computation reads: the same key
     assert calibration_key(spring_mass_damper(), dataclasses.replace(SHORT), np.random.default_rng(0)) == key
     assert calibration_key(dataclasses.replace(model, description="another text", units={}), config, rng) == key
-    assert calibration_key(model, dataclasses.replace(config, isolation_confidence=0.5, step_time=10.0), rng) == key
+    unread = dataclasses.replace(config, isolation=IsolationConfig(confidence=0.5), timing=dataclasses.replace(config.timing, step_time=10.0))
+    assert calibration_key(model, unread, rng) == key
     # a parameter, a limit, a setting the calibration reads, the seed: another key each
     changed = [
         calibration_key(model.with_overrides(parameters={"k": 101.0}), config, rng),
         calibration_key(model.with_overrides(limits={"b": (0.41, 0.6)}), config, rng),
-        calibration_key(model, dataclasses.replace(config, noise=0.02), rng),
+        calibration_key(model, dataclasses.replace(config, timing=ChainTiming(noise=0.02)), rng),
         calibration_key(model, dataclasses.replace(config, detector=dataclasses.replace(config.detector, margin=1.3)), rng),
         calibration_key(model, config, np.random.default_rng(1)),
     ]

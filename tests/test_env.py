@@ -223,7 +223,7 @@ def test_renders_a_picture_and_text():
 def test_the_tracking_filters_random_walk_is_the_wears_own():
     """Each wearing component's theta random walk (unit^2/s) is its WearConfig's; linear wear has none,
     a component that does not wear keeps the filter's default, and a setting the chain names itself wins."""
-    from ea_gym.phm.tracking import TrackingConfig
+    from ea_gym.phm.config import TrackingConfig
 
     wear = {"k": WearConfig(), "b": WearConfig(process="wiener", rate=(0.01, 0.01), direction=1)}
     env = gym.make("ea_gym/SpringMassDamper-v0", wear=wear)

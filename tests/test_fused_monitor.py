@@ -7,9 +7,9 @@ import pytest
 
 from ea_gym.diagnosis.monitor import Monitor, MonitorWindow
 from ea_gym.models import rlc_circuit, spring_mass_damper
-from ea_gym.phm.estimation import push_median
 from ea_gym.phm.history import MonitorHistory, push_window
 from ea_gym.phm.inversion import EAInversion
+from ea_gym.phm.inversion_estimator import push_median
 from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
 
 

@@ -5,11 +5,26 @@
 - ``ea_gym`` imports nothing from ``agents`` (the library never imports its client).
 - No module uses another module's underscore names: no ``from m import _x``, no ``obj._x`` on
   anything but ``self`` or ``cls``.
+- The package is built in floors, and no module imports from a floor above its own (imports inside
+  functions and under ``if TYPE_CHECKING:`` count too; a module may import from its own floor):
+
+  0. foundation: ``numerics``, ``threads``, ``files``, ``pyplot``, ``documents``, ``metrics``, ``_kernels``
+  1. the model and what it produces: ``bondgraph``, ``models``, ``model_files``, ``energy``, ``sensors``,
+     ``loads``, ``degradation``, ``scenario``, ``measurements``, ``plant``, ``cache``
+  2. ``diagnosis`` (the EA monitor, features, the isolation network and its training)
+  3. ``phm`` (the chain's stages and the chain)
+  4. its users: ``env``, ``reporting``, ``plots``, ``reproduce``
+  5. the front doors: ``cli``, ``cli_args`` and the package's ``__init__``
+
+  Every top-level module or subpackage of ``ea_gym`` has a floor here: a new one must be placed.
+- No cycle among the ``ea_gym.phm`` modules (the package's ``__init__`` included), type-checking-time
+  imports counted: the settings and the estimator registry sit below the stages that use them.
 """
 
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -75,3 +90,71 @@ _FOREIGN_PUBLIC = {"_fields", "_asdict", "_replace", "_getvalue", "_value_", "_n
 def test_no_other_modules_private_names(path: Path) -> None:
     uses = [u for u in _private_uses(ast.parse(path.read_text())) if u.split(" ")[0].rsplit(".", 1)[-1] not in _FOREIGN_PUBLIC]
     assert not uses, f"{path.name} uses private names: {uses}"
+
+
+FLOORS: dict[str, int] = {
+    **dict.fromkeys(("numerics", "threads", "files", "pyplot", "documents", "metrics", "_kernels"), 0),
+    **dict.fromkeys(("bondgraph", "models", "model_files", "energy", "sensors", "loads", "degradation", "scenario", "measurements",
+                     "plant", "cache"), 1),
+    "diagnosis": 2,
+    "phm": 3,
+    **dict.fromkeys(("env", "reporting", "plots", "reproduce"), 4),
+    **dict.fromkeys(("cli", "cli_args", "__init__"), 5),
+}
+LIBRARY = {".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__"): p for p in (ROOT / "ea_gym").rglob("*.py")}
+
+
+def library_imports(module: str) -> Iterator[tuple[str, int]]:
+    """The ``ea_gym`` modules that ``module`` imports anywhere in its source (a name imported from a package that is
+    one of its modules counts as that module), with the line of each import."""
+    path = LIBRARY[module]
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            yield from ((alias.name, node.lineno) for alias in node.names if alias.name.split(".")[0] == "ea_gym")
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                anchor = package.split(".")[: len(package.split(".")) - node.level + 1]
+                base = ".".join(anchor + ([base] if base else []))
+            if base.split(".")[0] == "ea_gym":
+                yield from ((f"{base}.{a.name}" if f"{base}.{a.name}" in LIBRARY else base, node.lineno) for a in node.names)
+
+
+def floor_of(module: str) -> int:
+    """The floor of an ``ea_gym`` module: that of its top-level module or subpackage (the package itself: the top)."""
+    return FLOORS[module.split(".")[1] if "." in module else "__init__"]
+
+
+def test_every_top_level_module_has_a_floor() -> None:
+    tops = {module.split(".")[1] for module in LIBRARY if "." in module}
+    assert tops <= set(FLOORS), f"place {sorted(tops - set(FLOORS))} on a floor (FLOORS, and this module's docstring)"
+
+
+@pytest.mark.parametrize("module", sorted(LIBRARY))
+def test_no_import_from_a_floor_above(module: str) -> None:
+    upward = [f"{imported} (floor {floor_of(imported)}, line {line})" for imported, line in library_imports(module)
+              if floor_of(imported) > floor_of(module)]
+    assert not upward, f"{module} (floor {floor_of(module)}) imports from above: {upward}"
+
+
+def test_the_phm_modules_import_one_another_without_a_cycle() -> None:
+    phm = sorted(m for m in LIBRARY if m == "ea_gym.phm" or m.startswith("ea_gym.phm."))
+    graph = {m: sorted({imported for imported, _ in library_imports(m) if imported in phm and imported != m}) for m in phm}
+    done: set[str] = set()
+
+    def cycle_from(module: str, path: list[str]) -> list[str] | None:
+        """A cycle through the modules on ``path`` reached from ``module``, depth first; None if there is none."""
+        if module in path:
+            return path[path.index(module):] + [module]
+        if module in done:
+            return None
+        for imported in graph[module]:
+            found = cycle_from(imported, path + [module])
+            if found:
+                return found
+        done.add(module)
+        return None
+
+    cycles = [c for c in (cycle_from(m, []) for m in phm) if c]
+    assert not cycles, f"import cycle: {' -> '.join(cycles[0])}"

@@ -186,7 +186,7 @@ def test_fuse_equals_its_numpy_definition_to_the_bit():
         fusion = isolation.fuse(alarm, log_evidence, estimated, balance)
         config = chain.config
         expected = fuse_by_definition(
-            average, previous, config.network_floor, isolation.weights, config.isolation_confidence, alarm, log_evidence, estimated, balance
+            average, previous, config.isolation.network_floor, isolation.weights, config.isolation.confidence, alarm, log_evidence, estimated, balance
         )
         # the cases are all there: restarted, confident and unsure suspects, systems without a belief
         assert len(expected[4]) and expected[3].any() and (~expected[3] & (expected[1] > 0)).any() and (expected[1] == 0).any()

@@ -13,7 +13,7 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.measurements import MeasurementError, Measurements, noise_estimate, read_measurements, write_measurements
 from ea_gym.models import spring_mass_damper
-from ea_gym.phm import DetectorConfig, PHMChain, PHMConfig, calibrate_thresholds, run_signals
+from ea_gym.phm import ChainTiming, DetectorConfig, PHMChain, PHMConfig, calibrate_thresholds, run_signals
 from ea_gym.phm.harness import StreamingChain, fitted_initial_state, nominal_reference, run_measurements, scenario_measurements
 from ea_gym.plant import run_model
 from ea_gym.scenario import load_scenario
@@ -140,7 +140,7 @@ class _Uniform(FaultClassifier):
 
 @pytest.fixture(scope="module")
 def chain():
-    config = PHMConfig(noise=NOISE, detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
+    config = PHMConfig(timing=ChainTiming(noise=NOISE), detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
     thresholds = calibrate_thresholds(MODEL, config, np.random.default_rng(2))
     return PHMChain(MODEL, _Uniform(classes_of(MODEL), "strong", 1), thresholds, config)
 
@@ -211,7 +211,7 @@ def test_the_reference_starts_from_the_state_fitted_to_the_first_step_not_from_o
     true = plant.states[2000]
     scale = np.ptp(plant.states, axis=0)
     fitted_error = np.abs(fitted - true) / scale
-    sample = record.signals[2000] / chain.monitor.measurement_gain(MODEL.parameter_vector())
+    sample = record.signals[2000] / chain.sensors.gain(MODEL.parameter_vector())
     sample_error = np.abs(sample - true) / scale  # 2.0e-3 and 0.8e-3 of the ranges here
     assert np.all(fitted_error < 1e-3) and fitted_error.max() < 0.5 * sample_error.max()  # 0.45e-3, 0.35e-3
 

@@ -11,10 +11,11 @@ from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.metrics import alpha_lambda
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import (
+    ChainTiming,
     EAInversion,
     EAInversionEstimator,
-    EstimatorConfig,
     ExtrapolationConfig,
+    InversionConfig,
     ParameterEstimates,
     PHMConfig,
     balance_chi_square,
@@ -26,7 +27,7 @@ from ea_gym.phm import (
 from ea_gym.plant import run_model
 from ea_gym.reproduce import LOADS, phase_eol
 from ea_gym.scenario import load_scenario
-from ea_gym.sensors import measure
+from ea_gym.sensors import Sensors
 
 MODEL = spring_mass_damper()
 PERSISTENT = LOADS["persistent"]
@@ -41,7 +42,7 @@ def _scenario(parameter, profile, load=PERSISTENT, noise=0.0, duration=120.0):
 
 
 def _run(scenario):
-    chain = build_chain(MODEL, PHMConfig(noise=scenario.noise), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
+    chain = build_chain(MODEL, PHMConfig(timing=ChainTiming(noise=scenario.noise)), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
     return chain, run_scenario(scenario, chain, np.random.default_rng(1))
 
 
@@ -92,7 +93,7 @@ def test_paper_fault_end_of_life_within_3_s_after_30_s_and_alpha_lambda(paper_ru
     "parameter, profile, bound",
     [
         # the damper wears: +0.001 N s/m per s. Its estimate follows a fast change within a window or two
-        # (EstimatorConfig.reach) at the price of a noisier single window: 0.052 N s/m off at worst here,
+        # (InversionConfig.reach) at the price of a noisier single window: 0.052 N s/m off at worst here,
         # 0.011 in the median (0.042 and 0.010 when it stopped at the grid's end)
         ("b", [[0, 0.5], [5, 0.5], [105, 0.6]], 0.06),
         ("m", [[0, 10.0], [5, 10.0], [105, 10.9]], 0.15),  # mass builds up: +9 g per s
@@ -128,7 +129,7 @@ def test_isolation_follows_the_hypothesis_the_ea_fits_when_the_network_is_unsure
     fusion = isolation.fuse(alarm, log_evidence, np.zeros((2, 3), dtype=bool), isolation.balance_evidence(chain.history, alarm))
     diagnosis = fusion.belief
     # belief in class j = (network share + floor) x c_min / c_j, normalised
-    f = chain.config.network_floor
+    f = chain.config.isolation.network_floor
     weights = np.array([(2 / 3 + f) * 1e-3, f, f * 1e-2, (1 / 3 + f) * 1e-2])
     np.testing.assert_allclose(diagnosis[0], weights / weights.sum(), rtol=1e-9)
     assert chain.classes[fusion.isolated[0]] == "k" and fusion.confident[0]
@@ -194,7 +195,7 @@ def test_monitor_residuals_vanish_without_fault_and_noise():
     scenario = _scenario("k", [[0, 100]], load=RANDOM_LOAD, duration=30.0)
     trajectory = run_model(MODEL, t, scenario.make_load())
     monitor = Monitor(MODEL, 0.01)
-    signals = measure(monitor, MODEL.parameter_vector()[None], trajectory.states[None], 0.0, np.random.default_rng(0))
+    signals = Sensors(MODEL).measure(MODEL.parameter_vector()[None], trajectory.states[None], 0.0, np.random.default_rng(0))
     load = scenario.make_load().value(t)[None]
     for start in range(0, 3000, 100):
         part = slice(start, start + 101)
@@ -211,8 +212,8 @@ def test_energy_balance_deviation_points_at_a_stiffness_fault_without_noise():
     nominal = run_model(MODEL, t, scenario.make_load())
     monitor = Monitor(MODEL, 0.01)
     rng = np.random.default_rng(0)
-    measured = measure(monitor, theta[None], faulty.states[None], 0.0, rng)
-    expected = measure(monitor, MODEL.parameter_vector()[None], nominal.states[None], 0.0, rng)
+    measured = Sensors(MODEL).measure(theta[None], faulty.states[None], 0.0, rng)
+    expected = Sensors(MODEL).measure(MODEL.parameter_vector()[None], nominal.states[None], 0.0, rng)
     load = scenario.make_load().value(t)[None]
     windows = [monitor.update(measured[..., s : s + 101], expected[..., s : s + 101], load[:, s : s + 101]) for s in range(0, 4000, 100)]
     frame = monitor.frame(windows[10:])
@@ -234,8 +235,8 @@ def _noise_free_window(k, config=None):
     theta = MODEL.parameter_vector({"k": k})
     trajectory = run_model(MODEL, t, load, lambda s: np.broadcast_to(theta, s.shape + theta.shape), np.array([0.3, 0.12]))
     monitor = Monitor(MODEL, 0.01)
-    signals = measure(monitor, theta[None], trajectory.states[None], 0.0, np.random.default_rng(0))
-    estimator = EAInversion(monitor, EstimatorConfig() if config is None else config)
+    signals = Sensors(MODEL).measure(theta[None], trajectory.states[None], 0.0, np.random.default_rng(0))
+    estimator = EAInversion(monitor, InversionConfig() if config is None else config)
     c = monitor.config.smoothing
     power, _ = monitor.powers(np.concatenate([signals, load.value(t)[None, None]], axis=1)[..., c:], c)
     start = monitor.state_filter(signals[..., : 2 * c + 1])[..., c]
@@ -264,7 +265,7 @@ def test_ea_inversion_recovers_a_constant_parameter_and_only_the_true_hypothesis
 @pytest.mark.parametrize("reach", [0.0, 1.0, 2.0])
 def test_a_warm_estimate_goes_past_its_outer_candidate_by_at_most_its_reach(reach):
     # the warm grid is the previous estimate and one step (warm_span x 20 N/m = 1 N/m) either side
-    estimator, start, u, du, measured = _noise_free_window(92.0, EstimatorConfig(reach=reach))
+    estimator, start, u, du, measured = _noise_free_window(92.0, InversionConfig(reach=reach))
     step = estimator.config.warm_span * 20.0
     inner, _ = estimator.estimate(np.array([1]), start, u, du, measured, previous=np.array([92.3]))
     assert inner[0] == pytest.approx(92.0, abs=0.05)  # the truth inside the grid: the parabola's vertex
@@ -275,10 +276,10 @@ def test_a_warm_estimate_goes_past_its_outer_candidate_by_at_most_its_reach(reac
         # step from 1.5 steps away: the cost is not quite quadratic there); the reach caps the way there
         assert value[0] == pytest.approx(max(92.0, farthest), abs=0.25)
         assert value[0] >= farthest - 1e-9
-    with pytest.raises(ValueError, match="estimator.reach"):
-        EstimatorConfig(reach=-1.0)
-    with pytest.raises(ValueError, match="estimator.warm_grid"):
-        EstimatorConfig(warm_grid=2)
+    with pytest.raises(ValueError, match="inversion.reach"):
+        InversionConfig(reach=-1.0)
+    with pytest.raises(ValueError, match="inversion.warm_grid"):
+        InversionConfig(warm_grid=2)
 
 
 def test_end_of_life_of_a_noise_free_linear_trend_is_exact_and_inside_its_interval():
@@ -342,8 +343,8 @@ def test_recorded_signals_run_through_the_chain_against_a_simulated_nominal_refe
     load = scenario.make_load()
     plant = run_model(MODEL, t, load, scenario.parameters_at)
     rng = np.random.default_rng(3)
-    chain = build_chain(MODEL, PHMConfig(noise=0.01), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
-    measured = measure(chain.monitor, plant.parameters[None], plant.states[None], 0.01, rng)
+    chain = build_chain(MODEL, PHMConfig(timing=ChainTiming(noise=0.01)), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
+    measured = chain.sensors.measure(plant.parameters[None], plant.states[None], 0.01, rng)
     statuses = run_signals(chain, measured, load.value(t)[None], load.derivative(t)[None])
     assert len(statuses) == 40 and statuses[-1].t[0] == pytest.approx(40.0)
     assert statuses[-1].alarm[0] and chain.classes[statuses[-1].isolated[0]] == "k"
@@ -352,8 +353,9 @@ def test_recorded_signals_run_through_the_chain_against_a_simulated_nominal_refe
 
 
 def test_the_estimator_is_chosen_by_name_and_a_reset_rewrites_only_its_systems_rows():
-    with pytest.raises(ValueError, match="estimator_kind"):
-        PHMConfig(estimator_kind="kalman")
+    classifier = load_shipped_classifier(MODEL.name)
+    with pytest.raises(ValueError, match="estimator_kind: no estimator named 'kalman'"):
+        build_chain(MODEL, PHMConfig(estimator_kind="kalman"), classifier, np.random.default_rng(0))
     chain = build_chain(MODEL, PHMConfig(estimator_kind="ea_inversion"), load_shipped_classifier(MODEL.name), np.random.default_rng(0), n_systems=2)
     assert isinstance(chain.estimator, EAInversionEstimator)
     chain.detector.state.alarm[:] = True

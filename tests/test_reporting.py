@@ -15,6 +15,7 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import (
+    ChainTiming,
     DetectorConfig,
     PHMChain,
     PHMConfig,
@@ -92,7 +93,7 @@ class _FavoursK(FaultClassifier):
 @pytest.fixture(scope="module")
 def setting():
     model = spring_mass_damper()
-    config = PHMConfig(noise=0.01, detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
+    config = PHMConfig(timing=ChainTiming(noise=0.01), detector=DetectorConfig(calibration_runs=2, calibration_duration=20.0, balance_span=20.0))
     thresholds = calibrate_thresholds(model, config, np.random.default_rng(2))
     chain = PHMChain(model, _FavoursK(classes_of(model), "strong", 1), thresholds, config)
     scenario = load_scenario(SCENARIO)

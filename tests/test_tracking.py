@@ -15,12 +15,12 @@ from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.loads import Sine, SinesLoad
 from ea_gym.models import get_model, spring_mass_damper
-from ea_gym.phm.config import PHMConfig
+from ea_gym.phm.config import ChainTiming, PHMConfig, TrackingConfig
 from ea_gym.phm.estimation import ParameterEstimates, ParameterEstimator, StepSignals
 from ea_gym.phm.prognosis import drift_end_of_life
-from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
+from ea_gym.phm.tracking import TrackingEstimator, tracking_stages
 from ea_gym.plant import run_model
-from ea_gym.sensors import measure
+from ea_gym.sensors import Sensors
 
 RATE = 100.0
 
@@ -123,7 +123,7 @@ def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, 
     load = SinesLoad(model.nominal_load, tuple(Sine(a * model.nominal_load, b * f) for a, b in ((0.4, 0.125), (0.2, 0.35), (0.1, 0.7))))
     plant = run_model(model, t, load, parameters)
     rng = np.random.default_rng(seed)
-    clean = measure(Monitor(model, 1 / RATE), plant.parameters[None], plant.states[None], noise, rng)
+    clean = Sensors(model).measure(plant.parameters[None], plant.states[None], noise, rng)
     u, du = load.value(t)[None], load.derivative(t)[None]
     step = int(RATE)
     return model, [
@@ -276,8 +276,8 @@ def test_a_system_at_rest_stays_finite(system: str) -> None:
 def test_behind_the_chains_seam() -> None:
     """The chain's constructor arguments give the chain's sample rate, noise and isolation classes."""
     model = spring_mass_damper()
-    config = PHMConfig(sample_rate=RATE, noise=0.01)
-    estimator: ParameterEstimator = TrackingEstimator.from_chain(model, Monitor(model, 1 / RATE), config, 3)
+    config = PHMConfig(timing=ChainTiming(sample_rate=RATE, noise=0.01))
+    estimator: ParameterEstimator = tracking_stages(model, Monitor(model, 1 / RATE), config, 3).estimator
     assert estimator.degradable == classes_of(model)[1:]
     assert isinstance(estimator, TrackingEstimator) and estimator.noise == 0.01 and estimator.h == 1 / RATE
 

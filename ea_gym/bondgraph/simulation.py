@@ -309,7 +309,7 @@ def simulate_measured(
     Args:
         u, du, theta, x0: as for ``simulate_batch``; u and du may hold fewer rows than the systems where ``inputs`` says
             which row drives each system.
-        gain: each system's measurement gain per state, (N, nx) (``Monitor.measurement_gain``).
+        gain: each system's measurement gain per state, (N, nx) (``ea_gym.sensors.Sensors.gain``).
         out: where to write the signals, (N, nx, T + 1); None: a new array.
         inputs: the row of u and du that drives each system, (N,) integers; None: system i's own row i.
 

@@ -18,7 +18,7 @@ from ea_gym.diagnosis.features import VARIANTS, frame_features
 from ea_gym.diagnosis.monitor import Monitor, MonitorConfig, MonitorWindow
 from ea_gym.loads import RandomLoad
 from ea_gym.models import SystemModel
-from ea_gym.sensors import add_sensor_noise
+from ea_gym.sensors import Sensors, add_sensor_noise
 
 
 @dataclass(frozen=True)
@@ -136,8 +136,9 @@ def build_database(
     reference = simulate_batch(space, h, u_loads, du_loads, np.repeat(nominal[None], config.n_loads, 0), x0[: config.n_loads])
 
     monitor = Monitor(model, h, monitor_config, n_systems=n)
-    measured = np.einsum("nij,ntj->nit", monitor.measurement_matrix(theta), plant)
-    expected = np.einsum("ij,ntj->nit", monitor.measurement_matrix(nominal), reference)[load_index]
+    sensors = Sensors(model)
+    measured = np.einsum("nij,ntj->nit", sensors.matrix(theta), plant)
+    expected = np.einsum("ij,ntj->nit", sensors.matrix(nominal), reference)[load_index]
     noise_std = np.array([r[4] for r in runs])  # relative to each signal's RMS
     chunk = int(round(config.chunk * config.sample_rate))
     windows: list[MonitorWindow] = []

@@ -1,8 +1,8 @@
 """Measurement, denoising and Energy Activity of the real and the reference system (paper 3.1).
 
-Sensors measure each storage element's co-energy side: the flow of every I element (a velocity, a
-current) and the displacement q of every C element (a position, a charge), with Gaussian noise whose
-std is a fraction of the signal's RMS over the window. A Savitzky-Golay filter smooths them and gives
+The monitor takes what the sensors (``ea_gym.sensors.Sensors``) measure: the flow of every I element
+(a velocity, a current) and the displacement q of every C element (a position, a charge), with
+Gaussian noise whose std is a fraction of the signal's RMS over the window. A Savitzky-Golay filter smooths them and gives
 their time derivatives. It is zero-phase, and the reference model's signals pass through exactly the
 same filter, so what magnitude distortion remains cancels in the residuals (the paper's 3.2 warning).
 
@@ -30,6 +30,7 @@ from ea_gym.diagnosis.features import Frame
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
 from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
+from ea_gym.sensors import Sensors
 from ea_gym.threads import over_rows
 
 
@@ -122,13 +123,7 @@ class Monitor:
         self._Dy_constant = mats.Dy @ model.constant_inputs()  # what the constant sources add to every bond
         self._buffers: dict[tuple, np.ndarray] = {}
         # per state: the nominal factor turning the measured signal into the energy variable
-        self._to_state = np.array(
-            [nominal[space.parameter_names.index(s)] if elements[s].kind is Kind.I else 1.0 for s in space.state_names]
-        )
-        # (state, parameter) of every I element's momentum, which its sensor reads as p / I
-        self._momenta = [
-            (j, space.parameter_names.index(name)) for j, name in enumerate(space.state_names) if elements[name].kind is Kind.I
-        ]
+        self._to_state = Sensors(model).inverse_gain(nominal)
         # I elements: P = I0 f df/dt from their own flow; the junction structure would give their
         # effort by closing the power balance, which would hide the fault in it
         self._inertance = {
@@ -147,17 +142,6 @@ class Monitor:
         # the kernels' arguments: the filters' coefficients (``smooth_rows``), the nominal laws (``element_powers``)
         self._smoothing = (self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1))
         self._laws = (self._to_state, self._Cy, self._Dy0, self._Dy_constant, *self._bonds, self._inertia)
-
-    def measurement_gain(self, parameters: np.ndarray) -> np.ndarray:
-        """The diagonal of ``measurement_matrix``, (..., nx): 1 / I on each I element's momentum, 1 elsewhere."""
-        diagonal = np.ones(np.shape(parameters)[:-1] + (len(self._to_state),))
-        for j, p in self._momenta:
-            diagonal[..., j] = 1.0 / parameters[..., p]
-        return diagonal
-
-    def measurement_matrix(self, parameters: np.ndarray) -> np.ndarray:
-        """Rows map energy variables to measured signals under true ``parameters`` (..., P): (..., nx, nx)."""
-        return self.measurement_gain(parameters)[..., :, None] * np.eye(len(self.model.state_space.state_names))
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Forget the smoothing context of all systems, or of those where the boolean mask is true."""

@@ -10,7 +10,7 @@ from typing import Any
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
-from ea_gym.phm import PHMConfig
+from ea_gym.phm import ChainTiming, PHMConfig
 
 OBS_MODES = ("phm", "sensors", "oracle")
 #: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
@@ -38,8 +38,8 @@ class EnvConfig:
         continue_after_failure: a failure forces a replacement with downtime instead of ending the episode.
         rul_max: RUL observations are clipped to [0, rul_max] (s).
         load_std: range (low, high) of the random loads' std, fraction of the nominal load.
-        phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its window,
-            clock, sample rate and noise are the environment's (``phm_config``). None: the defaults.
+        phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
+            (window, clock, sample rate and noise) is the environment's (``phm_config``). None: the defaults.
     """
 
     step_seconds: float = 1.0
@@ -96,10 +96,9 @@ class EnvConfig:
 
     @property
     def phm_config(self) -> PHMConfig:
-        """The chain's settings, its window, clock, sample rate and noise the environment's."""
-        return dataclasses.replace(
-            self.phm or PHMConfig(), step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise
-        )
+        """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
+        timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
+        return dataclasses.replace(self.phm or PHMConfig(), timing=timing)
 
 
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:

@@ -82,7 +82,7 @@ class MaintenanceCore:
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
-        self.operation = Operation(model, self.monitor, n_systems, config.sample_rate, config.window, config.noise, config.load_std)
+        self.operation = Operation(model, n_systems, config.sample_rate, config.window, config.noise, config.load_std)
         self.h, self.samples = self.operation.h, self.operation.samples
         self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}

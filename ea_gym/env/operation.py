@@ -15,11 +15,10 @@ import numpy as np
 
 from ea_gym.bondgraph.simulation import MeasuredSimulation
 from ea_gym.degradation import Wear, WearConfig
-from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
 from ea_gym.loads import multisine_rotations, rotated_multisine_into
 from ea_gym.models import SystemModel
-from ea_gym.sensors import SystemNoise
+from ea_gym.sensors import Sensors, SystemNoise
 from ea_gym.threads import over_rows
 
 LOAD_COMPONENTS = 16  # sines in each random load
@@ -91,8 +90,7 @@ class Operation:
     """The plant and its fault-free reference under the same loads, measured by the sensors.
 
     Args:
-        model: the machine.
-        monitor: the EA monitor, whose measurement gains the sensors read through.
+        model: the machine (its sensors measure both).
         n_systems: N.
         sample_rate: Hz.
         window: measured operation per step (s).
@@ -101,11 +99,11 @@ class Operation:
     """
 
     def __init__(
-        self, model: SystemModel, monitor: Monitor, n_systems: int, sample_rate: float, window: float, noise: float,
+        self, model: SystemModel, n_systems: int, sample_rate: float, window: float, noise: float,
         load_std: tuple[float, float],
     ):
         self.model = model
-        self.monitor = monitor
+        self.sensors = Sensors(model)
         self.n = n_systems
         self.nominal = model.parameter_vector()  # the reference's parameters
         # plant and reference in one batch: the plants' parameter rows (written each window), then the references'
@@ -154,7 +152,7 @@ class Operation:
         theta[:n] = parameters
         loads, rates = self.model.source_inputs(u, du)  # system i's, driving plant i and reference i
         # the measurement matrices are diagonal: a product per state equals the matrix product exactly
-        signals, self.states = self.simulation(loads, rates, theta, self.states, self.monitor.measurement_gain(theta))
+        signals, self.states = self.simulation(loads, rates, theta, self.states, self.sensors.gain(theta))
         self.elapsed += self.window
         return Window(measured=self.sensor_noise(signals[:n], rngs), expected=signals[n:], load=u, load_rate=du)
 

@@ -2,24 +2,26 @@
 
 monitor (``ea_gym.diagnosis.monitor``) -> :mod:`~ea_gym.phm.detection` -> :mod:`~ea_gym.phm.isolation`
 (network, balance evidence) -> :mod:`~ea_gym.phm.estimation` (the ``ParameterEstimator`` seam; the EA
-inversion of :mod:`~ea_gym.phm.inversion`, the tracking filters of :mod:`~ea_gym.phm.tracking`;
-:mod:`~ea_gym.phm.estimators` pairs each estimator kind
-with its prognosis) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
-:mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
+inversion of :mod:`~ea_gym.phm.inversion_estimator`, the tracking filters of :mod:`~ea_gym.phm.tracking`,
+each registered with its prognosis in :mod:`~ea_gym.phm.registry`) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
+:mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.config` holds each stage's settings and
+:mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
 runs scenarios and recorded signals through a chain (whole, or streamed as they arrive: ``StreamingChain``);
 :mod:`~ea_gym.phm.thresholds` keeps the detection thresholds computed once.
 """
 
 from ea_gym.phm.chain import HealthStatus, PHMChain
-from ea_gym.phm.config import PHMConfig
-from ea_gym.phm.detection import DetectorConfig, calibrate_thresholds, relative_residuals
-from ea_gym.phm.estimation import (
-    EAInversionEstimator,
-    ParameterEstimates,
-    ParameterEstimator,
-    StepSignals,
+from ea_gym.phm.config import (
+    ChainTiming,
+    DetectorConfig,
+    ExtrapolationConfig,
+    InversionConfig,
+    IsolationConfig,
+    PHMConfig,
+    TrackingConfig,
 )
-from ea_gym.phm.estimators import ESTIMATORS, EstimationStages, make_stages
+from ea_gym.phm.detection import calibrate_thresholds, relative_residuals
+from ea_gym.phm.estimation import ParameterEstimates, ParameterEstimator, StepSignals
 from ea_gym.phm.harness import (
     ChainRun,
     StreamingChain,
@@ -32,24 +34,26 @@ from ea_gym.phm.harness import (
     run_signals,
     scenario_measurements,
 )
-from ea_gym.phm.inversion import EAInversion, EstimatorConfig
+from ea_gym.phm.inversion import EAInversion
+from ea_gym.phm.inversion_estimator import EAInversionEstimator
 from ea_gym.phm.isolation import EvidenceWeights, balance_chi_square
 from ea_gym.phm.prognosis import (
     DriftPrognosis,
     EndOfLife,
-    ExtrapolationConfig,
     PrognosisStage,
     TrendFit,
     TrendPrognosis,
     drift_end_of_life,
     predict_end_of_life,
 )
+from ea_gym.phm.registry import ESTIMATORS, EstimationStages, make_stages, register_estimator, registered_estimators
 from ea_gym.phm.thresholds import thresholds_for
-from ea_gym.phm.tracking import TrackingConfig, TrackingEstimator
+from ea_gym.phm.tracking import TrackingEstimator
 
 __all__ = [
     "ESTIMATORS",
     "ChainRun",
+    "ChainTiming",
     "DetectorConfig",
     "EAInversion",
     "EAInversionEstimator",
@@ -57,7 +61,8 @@ __all__ = [
     "EndOfLife",
     "EstimationStages",
     "EvidenceWeights",
-    "EstimatorConfig",
+    "InversionConfig",
+    "IsolationConfig",
     "ExtrapolationConfig",
     "HealthStatus",
     "PHMChain",
@@ -80,6 +85,8 @@ __all__ = [
     "fitted_initial_state",
     "make_stages",
     "predict_end_of_life",
+    "register_estimator",
+    "registered_estimators",
     "relative_residuals",
     "run_measurements",
     "run_scenario",

@@ -23,10 +23,11 @@ from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import Detector
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals
-from ea_gym.phm.estimators import make_stages
 from ea_gym.phm.history import MonitorHistory
 from ea_gym.phm.isolation import Isolation
 from ea_gym.phm.prognosis import EndOfLife
+from ea_gym.phm.registry import make_stages
+from ea_gym.sensors import Sensors
 
 
 @dataclass(frozen=True)
@@ -48,7 +49,7 @@ class HealthStatus:
             average since the alarm weighed by the estimator's and the energy balance's evidence.
         isolated: class index of the isolated parameter, 0 while none, (N,).
         confidence: the suspect's share of the fault classes' belief, 0 while none, (N,); confident:
-            at or above ``PHMConfig.isolation_confidence`` (only then is an End of Life predicted).
+            at or above ``IsolationConfig.confidence`` (only then is an End of Life predicted).
         estimates: estimate of every degradable parameter, (N, D), each as if it alone were faulty.
         estimation: the estimator's whole output (variances, evidence, which it updated, the times its
             values describe).
@@ -107,21 +108,23 @@ class PHMChain:
         self.model = model
         self.config = config
         self.n = n_systems
-        self.h = 1.0 / config.sample_rate
+        timing = config.timing
+        self.h = 1.0 / timing.sample_rate
         self.classifier = classifier
         self.classes = classes_of(model)
         if tuple(classifier.classes) != self.classes:
             raise ValueError(f"classifier classes {classifier.classes} do not match the model's {self.classes}")
         self.degradable = self.classes[1:]
+        self.sensors = Sensors(model)  # how the plant and the reference are measured
         self.monitor = Monitor(model, self.h, config.monitor, n_systems)
-        self.step_samples = window_samples(config.step, self.h)
-        self.step_time = config.update_time
-        self.detector = Detector(thresholds, config.detector, self.monitor, config.step, n_systems)
+        self.step_samples = window_samples(timing.step, self.h)
+        self.step_time = timing.update_time
+        self.detector = Detector(thresholds, config.detector, self.monitor, timing.step, n_systems)
         self.thresholds = self.detector.thresholds
-        # the estimator and the prognosis that reads it come together (``PHMConfig.estimator_kind``)
+        # the estimator and the prognosis that reads it come together (``PHMConfig.estimator_kind``, ``ea_gym.phm.registry``)
         stages = make_stages(model, self.monitor, config, n_systems)
         self.estimator, self.prognosis = stages.estimator, stages.prognosis
-        self.isolation = Isolation(classifier, self.monitor, config, self.classes, n_systems, stages.weights)
+        self.isolation = Isolation(classifier, self.monitor, config.isolation, timing, self.classes, n_systems, stages.weights)
         self.frame_steps = self.isolation.frame_steps
         if tuple(self.estimator.degradable) != self.degradable:
             raise ValueError(f"the estimator's parameters {self.estimator.degradable} are not the classifier's {self.degradable}")

@@ -10,7 +10,6 @@ row.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
@@ -21,45 +20,10 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
+from ea_gym.phm.config import DetectorConfig, PHMConfig
 from ea_gym.phm.history import MonitorHistory, rows_of
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import Sensors, add_sensor_noise
 from ea_gym.threads import over_rows
-
-if TYPE_CHECKING:
-    from ea_gym.phm.config import PHMConfig
-
-
-@dataclass(frozen=True)
-class DetectorConfig:
-    """Residual detection.
-
-    Attributes:
-        window: span of the EA residual sums compared with the threshold (s).
-        balance_span: span of the energy-balance residual sum (s, a whole number of steps): its noise
-            grows slower than a dissipator's fault, so a longer span sees a smaller fault (at 1 % noise
-            the threshold is about 18 % of the light damper's dissipation over 20 s, 8 % over 60 s),
-            later (the sum describes the middle of its span).
-        persistence: consecutive steps above threshold that raise the alarm.
-        margin: threshold = margin x the largest statistic seen in fault-free calibration runs.
-        floor: smallest threshold (relative EA residual), for noise-free signals.
-        calibration_runs: fault-free runs simulated for the calibration.
-        calibration_duration: their length (s).
-    """
-
-    window: float = 5.0
-    balance_span: float = 60.0
-    persistence: int = 3
-    margin: float = 1.25
-    floor: float = 1e-3
-    calibration_runs: int = 8
-    calibration_duration: float = 180.0
-
-    def __post_init__(self) -> None:
-        if self.calibration_duration < max(self.window, self.balance_span):
-            raise ValueError(
-                f"detector.calibration_duration ({self.calibration_duration} s) must be at least its window "
-                f"({self.window} s) and balance_span ({self.balance_span} s)"
-            )
 
 
 def relative_residuals(ea: np.ndarray, ea_reference: np.ndarray, balance: np.ndarray, dissipated: np.ndarray) -> np.ndarray:
@@ -143,26 +107,27 @@ class Detector:
 
 
 def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> np.ndarray:
-    """Detection thresholds from fault-free runs under random loads at ``config.noise``, (E + 1,)."""
+    """Detection thresholds from fault-free runs under random loads at ``config.timing.noise``, (E + 1,)."""
     from ea_gym.bondgraph.simulation import simulate_batch
 
     d = config.detector
-    h = 1.0 / config.sample_rate
+    timing = config.timing
+    h = 1.0 / timing.sample_rate
     runs = d.calibration_runs
     loads = draw_loads(model, runs, rng)
-    t = np.arange(int(round(d.calibration_duration * config.sample_rate)) + 1) * h
+    t = np.arange(int(round(d.calibration_duration * timing.sample_rate)) + 1) * h
     u = np.stack([load.value(t) for load in loads])
     du = np.stack([load.derivative(t) for load in loads])
     nominal = np.repeat(model.parameter_vector()[None], runs, 0)
     states = simulate_batch(model.state_space, h, *model.source_inputs(u, du), nominal, np.zeros((runs, len(model.state_names))))
     monitor = Monitor(model, h, config.monitor, runs)
-    clean = measure(monitor, nominal, states, 0.0, rng)
-    step = window_samples(config.step, h)
+    clean = Sensors(model).measure(nominal, states, 0.0, rng)
+    step = window_samples(timing.step, h)
     subs = window_samples(config.detector.window, config.monitor.sub_window)
     windows = []
     for start in range(0, len(t) - 1, step):
         part = slice(start, start + step + 1)
-        noisy = add_sensor_noise(clean[..., part], config.noise, rng)
+        noisy = add_sensor_noise(clean[..., part], timing.noise, rng)
         windows.append(monitor.update(noisy, clean[..., part], u[:, part]))
     # the balance windows are whole sub-windows: spread each over its sub-windows to align the sums
     per_sub = window_samples(config.monitor.balance_window, config.monitor.sub_window)

@@ -11,17 +11,16 @@ from numpy.typing import ArrayLike
 
 from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.classifier import FaultClassifier
-from ea_gym.diagnosis.monitor import Monitor, MonitorConfig
 from ea_gym.energy import window_samples
 from ea_gym.measurements import Measurements
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
 from ea_gym.phm.chain import HealthStatus, PHMChain
-from ea_gym.phm.config import PHMConfig
+from ea_gym.phm.config import ChainTiming, PHMConfig
 from ea_gym.phm.thresholds import thresholds_for
 from ea_gym.plant import Trajectory, run_model
 from ea_gym.scenario import Scenario
-from ea_gym.sensors import add_sensor_noise, measure
+from ea_gym.sensors import Sensors, add_sensor_noise
 
 #: wraps the iterable of step starts, e.g. in a progress bar
 Progress = Callable[[Iterable[int]], Iterable[int]]
@@ -66,7 +65,7 @@ def fitted_initial_state(chain: PHMChain, measured: np.ndarray, load: np.ndarray
     n, nx, samples = measured.shape
     space, h = chain.model.state_space, chain.h
     nominal = np.repeat(chain.model.parameter_vector()[None], max(n, nx), 0)
-    gain = chain.monitor.measurement_gain(nominal)
+    gain = chain.sensors.gain(nominal)
     forced, _ = simulate_measured(space, h, *chain.model.source_inputs(load, load_rate), nominal[:n], np.zeros((n, nx)), gain[:n])
     rest = np.zeros((nx, samples, space.n_inputs))
     free, _ = simulate_measured(space, h, rest, rest, nominal[:nx], np.eye(nx), gain[:nx])  # (state, signal, sample)
@@ -86,7 +85,7 @@ def nominal_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, l
     first = slice(0, chain.step_samples + 1)
     start = fitted_initial_state(chain, measured[..., first], load[:, first], load_rate[:, first])
     signals, _ = simulate_measured(
-        chain.model.state_space, chain.h, *chain.model.source_inputs(load, load_rate), nominal, start, chain.monitor.measurement_gain(nominal)
+        chain.model.state_space, chain.h, *chain.model.source_inputs(load, load_rate), nominal, start, chain.sensors.gain(nominal)
     )
     return signals
 
@@ -131,10 +130,10 @@ def run_signals(
     return statuses
 
 
-def _plant_signals(scenario: Scenario, monitor: Monitor, rng: np.random.Generator) -> tuple[Trajectory, np.ndarray]:
+def _plant_signals(scenario: Scenario, sensors: Sensors, rng: np.random.Generator) -> tuple[Trajectory, np.ndarray]:
     """The scenario's plant simulated, and its sensors' clean signals, (1, nx, T)."""
     plant = run_model(scenario.model, scenario.times(), scenario.make_load(), scenario.parameters_at, scenario.initial_state_vector())
-    return plant, measure(monitor, plant.parameters[None], plant.states[None], 0.0, rng)
+    return plant, sensors.measure(plant.parameters[None], plant.states[None], 0.0, rng)
 
 
 def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, progress: Progress | None = None) -> ChainRun:
@@ -142,13 +141,13 @@ def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, 
     model = scenario.model
     t = scenario.times()
     load = scenario.make_load()
-    plant, clean = _plant_signals(scenario, chain.monitor, rng)
+    plant, clean = _plant_signals(scenario, chain.sensors, rng)
     reference = run_model(model, t, load, None, scenario.initial_state_vector())
     nominal = model.parameter_vector()[None]
-    expected = measure(chain.monitor, nominal, reference.states[None], 0.0, rng)
+    expected = chain.sensors.measure(nominal, reference.states[None], 0.0, rng)
     statuses = run_signals(
         chain, clean, load.value(t)[None], load.derivative(t)[None], expected,
-        noise=lambda chunk: add_sensor_noise(chunk, chain.config.noise, rng), progress=progress,
+        noise=lambda chunk: add_sensor_noise(chunk, chain.config.timing.noise, rng), progress=progress,
     )
     index = np.round(np.array([s.t[0] for s in statuses]) * scenario.sample_rate).astype(int)
     return ChainRun.of(statuses, plant.parameters[index])
@@ -156,11 +155,10 @@ def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, 
 
 def scenario_measurements(scenario: Scenario, rng: np.random.Generator) -> Measurements:
     """What the sensors of ``scenario``'s plant record: its load and every storage element's signal with
-    the scenario's sensor noise (its std a fraction of each signal's RMS over each step of ``PHMConfig().step``)."""
+    the scenario's sensor noise (its std a fraction of each signal's RMS over each step of ``ChainTiming().step``)."""
     h = 1.0 / scenario.sample_rate
-    monitor = Monitor(scenario.model, h, MonitorConfig(), 1)
-    plant, clean = _plant_signals(scenario, monitor, rng)
-    step = window_samples(PHMConfig().step, h)
+    plant, clean = _plant_signals(scenario, Sensors(scenario.model), rng)
+    step = window_samples(ChainTiming().step, h)
     noisy = np.concatenate([add_sensor_noise(clean[..., s : s + step], scenario.noise, rng) for s in range(0, clean.shape[-1], step)], -1)
     return Measurements(t=plant.t, load=scenario.make_load().value(plant.t), signals=noisy[0].T)
 
@@ -275,7 +273,7 @@ class StreamingChain:
             self._reference_state = fitted_initial_state(chain, measured, load[None], load_rate[None])
         reference, self._reference_state = simulate_measured(
             chain.model.state_space, chain.h, *chain.model.source_inputs(load[None], load_rate[None]), chain.model.parameter_vector()[None],
-            self._reference_state, chain.monitor.measurement_gain(chain.model.parameter_vector()[None]),
+            self._reference_state, chain.sensors.gain(chain.model.parameter_vector()[None]),
         )
         status = chain.update(measured, reference, load[None], load_rate[None])
         self.statuses.append(status)
@@ -288,11 +286,12 @@ class StreamingChain:
 def check_duration(measurements: Measurements, config: PHMConfig) -> None:
     """Refuse a record that does not last one detection window (``DetectorConfig.window``), before any
     chain is built for it."""
-    needed = max(config.step, config.detector.window)
-    if measurements.duration < needed - 0.5 / config.sample_rate:
+    timing = config.timing
+    needed = max(timing.step, config.detector.window)
+    if measurements.duration < needed - 0.5 / timing.sample_rate:
         raise ValueError(
             f"measurements: the record lasts {measurements.duration:g} s; the chain needs at least {needed:g} s "
-            f"(one detection window), i.e. {round(needed * config.sample_rate) + 1} samples at {config.sample_rate:g} Hz"
+            f"(one detection window), i.e. {round(needed * timing.sample_rate) + 1} samples at {timing.sample_rate:g} Hz"
         )
 
 
@@ -316,7 +315,7 @@ def run_measurements(chain: PHMChain, measurements: Measurements, progress: Prog
 def build_chain(
     model: SystemModel, config: PHMConfig, classifier: FaultClassifier, rng: np.random.Generator, n_systems: int = 1
 ) -> PHMChain:
-    """A chain for ``model`` with its detection thresholds calibrated at ``config.noise`` (or read from the cache: see
+    """A chain for ``model`` with its detection thresholds calibrated at ``config.timing.noise`` (or read from the cache: see
     :func:`~ea_gym.phm.thresholds.thresholds_for`)."""
     return PHMChain(model, classifier, thresholds_for(model, config, rng), config, n_systems)
 

@@ -5,7 +5,7 @@ t0 - c under the measured load (c is the smoothing context), their signals go th
 denoising and nominal laws as the measurements, and the candidate whose components' EA and energy
 balance over [t0, t1] match the measured ones best (in relative least squares) is refined on finer
 grids, then to the vertex of the parabola through it and its neighbours (past the grid's end by up
-to ``EstimatorConfig.reach`` steps). This uses eq 10's ingredients without linearising them: dS/dphi
+to ``InversionConfig.reach`` steps). This uses eq 10's ingredients without linearising them: dS/dphi
 is the model's own response to phi, dEA/dS the component's constitutive law. It is preferred to
 integrating the rate of eq 15 (eq 16) because each window's estimate is absolute: errors do not
 accumulate, and it works for storage elements (C, I) as well as for dissipators (R), which the paper
@@ -13,9 +13,6 @@ names as its limitation.
 """
 
 from __future__ import annotations
-
-import math
-from dataclasses import dataclass
 
 import numba
 import numpy as np
@@ -25,6 +22,8 @@ from ea_gym.bondgraph.simulation import simulate_measured
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
+from ea_gym.phm.config import InversionConfig
+from ea_gym.sensors import Sensors
 
 
 @numba.njit(cache=True)
@@ -59,54 +58,6 @@ def _signatures(power: np.ndarray, components: np.ndarray, sources: np.ndarray, 
     return finite, out
 
 
-@dataclass(frozen=True)
-class EstimatorConfig:
-    """Settings of the EA inversion.
-
-    Attributes:
-        window: inversion window t1 - t0 (s).
-        grid: candidates per pass from the full range.
-        passes: passes from the full range (each narrows the grid to two steps around the best candidate).
-        margin: how far beyond the safe limits the first grid reaches, as a fraction of their span.
-        warm_span: half-width of the first grid around the previous estimate, fraction of the safe
-            span, when there is one: parameters change little from one window to the next, and the
-            bound keeps a weakly identifiable hypothesis from leaping to explain noise or another
-            component's fault.
-        warm_grid: candidates per pass from a warm start (the previous value and one either side: the
-            parabola through their costs gives the estimate).
-        warm_passes: passes from a warm start.
-        reach: how many grid steps beyond the outer candidates the estimate may go, when the best
-            candidate is an outer one and the cost is convex there: the vertex of the parabola through
-            the three outer candidates (a Newton step). A weakly identifiable parameter's cost is flat
-            and noisy around its previous estimate; stopping at the best candidate then makes the
-            estimate crawl one grid step per window behind the parameter. On the spring-mass-damper
-            (300 episodes, corrective band policy) a reach of 1 cut the light damper's failures from 5 to
-            2 and the episode cost from 97.7 to 94.4; 2 gave 3 failures, 96.7.
-        median: length of the (causal) median filter over successive estimates (paper 4.4).
-        balance_share: the energy-balance mismatch is relative to the dissipators' EA plus this share of
-            all the components' EA: the balance is where a dissipator's fault shows, but its end points
-            carry the stored energies' errors, which should not outweigh a good EA match.
-    """
-
-    window: float = 3.0
-    grid: int = 9
-    passes: int = 3
-    margin: float = 0.5
-    warm_span: float = 0.05
-    warm_grid: int = 3
-    warm_passes: int = 1
-    reach: float = 1.0
-    median: int = 3
-    balance_share: float = 0.2
-
-    def __post_init__(self) -> None:
-        for name in ("grid", "warm_grid"):  # the parabola through the best candidate needs two neighbours
-            if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 3):
-                raise ValueError(f"estimator.{name} must be an integer >= 3 (candidates per pass), got {getattr(self, name)!r}")
-        if not (math.isfinite(self.reach) and self.reach >= 0):
-            raise ValueError(f"estimator.reach must be a finite number of grid steps >= 0, got {self.reach!r}")
-
-
 class EAInversion:
     """Estimates one parameter per system from the EA of the components over one window.
 
@@ -115,10 +66,11 @@ class EAInversion:
         config: inversion settings.
     """
 
-    def __init__(self, monitor: Monitor, config: EstimatorConfig = EstimatorConfig()):
+    def __init__(self, monitor: Monitor, config: InversionConfig = InversionConfig()):
         self.monitor = monitor
         self.model: SystemModel = monitor.model
         self.config = config
+        self.sensors = Sensors(self.model)
         self.context = monitor.config.smoothing
         self._components = np.array([monitor.elements.index(c) for c in monitor.components])
         self._sources = np.array([monitor.elements.index(u) for u in self.model.state_space.input_names])
@@ -167,7 +119,7 @@ class EAInversion:
         theta = np.repeat(self.model.parameter_vector()[None, None], n, 0).repeat(g, 1)
         theta[np.arange(n), :, parameter_index] = values
         theta = theta.reshape(n * g, -1)
-        to_signal = self.monitor.measurement_gain(theta)
+        to_signal = self.sensors.gain(theta)
         x0 = np.repeat(start, g, 0) / to_signal
         uu, duu = self.model.source_inputs(np.repeat(u, g, 0), np.repeat(du, g, 0))
         # the measured signals, then the load: (n g, nx + 1, T)

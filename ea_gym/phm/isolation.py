@@ -15,7 +15,6 @@ light damper, whose EA fit it can mimic.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,11 +33,8 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.features import frame_features
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.energy import window_samples
+from ea_gym.phm.config import ChainTiming, IsolationConfig
 from ea_gym.phm.history import MonitorHistory, rows_of
-
-if TYPE_CHECKING:
-    from ea_gym.phm.config import PHMConfig
-
 
 #: the pseudo-inverse's cut: singular values below it relative to the largest count as zero
 _PINV_RCOND = 1e-12
@@ -118,7 +114,7 @@ class Fusion:
         belief: the fused class probabilities ("none" = 1 before the alarm), (N, K).
         isolated: class index of the suspect, 0 while none, (N,).
         confidence: the suspect's share of the fault classes' belief, 0 while none, (N,).
-        confident: confidence at or above ``PHMConfig.isolation_confidence``, (N,).
+        confident: confidence at or above ``IsolationConfig.confidence``, (N,).
         restarted: the systems whose new suspect was not estimated at this step (its estimates are stale), (M,).
     """
 
@@ -135,14 +131,16 @@ class Isolation:
     Args:
         classifier: the isolation network (its classes are "none" then the degradable parameters).
         monitor: the monitor whose outputs the history holds.
-        config: the chain's settings.
+        config: the isolation's settings.
+        timing: the chain's step.
         classes: "none" then the degradable parameters.
         n_systems: N.
         weights: the network's and the balance's weights beside the estimator's evidence.
     """
 
     def __init__(
-        self, classifier: FaultClassifier, monitor: Monitor, config: PHMConfig, classes: tuple[str, ...], n_systems: int,
+        self, classifier: FaultClassifier, monitor: Monitor, config: IsolationConfig, timing: ChainTiming, classes: tuple[str, ...],
+        n_systems: int,
         weights: EvidenceWeights = EvidenceWeights(),
     ):
         self.classifier = classifier
@@ -151,9 +149,9 @@ class Isolation:
         self.config = config
         self.classes = classes
         self.n = n_systems
-        self.frame_steps = window_samples(config.frame, config.step)
-        self.evidence_steps = window_samples(config.balance_evidence_span, config.step)
-        step_samples = window_samples(config.step, monitor.h)
+        self.frame_steps = window_samples(config.frame, timing.step)
+        self.evidence_steps = window_samples(config.balance_evidence_span, timing.step)
+        step_samples = window_samples(timing.step, monitor.h)
         self.balance_windows_per_step = step_samples // (monitor.n_sub * monitor.n_balance)
         # each degradable parameter's column in the balance regression (-1: not a component's)
         self.balance_column = np.array([monitor.components.index(p) if p in monitor.components else -1 for p in classes[1:]])
@@ -185,7 +183,7 @@ class Isolation:
             predicted = self.classifier.predict_proba(features)
         # an exponential average over the frames since the alarm: later frames, with the fault grown,
         # outweigh the first ambiguous ones
-        return network_average(predicted, counted, self.n, self.config.isolation_smoothing, self.state.probability_average)
+        return network_average(predicted, counted, self.n, self.config.smoothing, self.state.probability_average)
 
     def balance_evidence(self, history: MonitorHistory, alarm: np.ndarray) -> np.ndarray:
         """Log likelihood ratio (N, K) of each class to the best one from the energy balance of the last ``balance_evidence_span``."""
@@ -216,6 +214,6 @@ class Isolation:
         # the alarm already says there is a fault: confidence is the suspect's share among the fault
         # classes; a new suspect not estimated at this step has stale estimates: the estimator restarts it
         diagnosis, isolated, confidence, confident, restarted = verdict(
-            belief, believed, s.isolated, s.confident, estimated, self.config.isolation_confidence
+            belief, believed, s.isolated, s.confident, estimated, self.config.confidence
         )
         return Fusion(belief=diagnosis, isolated=isolated, confidence=confidence, confident=confident, restarted=restarted)

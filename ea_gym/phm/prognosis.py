@@ -26,6 +26,7 @@ import numpy as np
 from ea_gym._kernels.prognosis import drift_ends, drift_prognosis
 from ea_gym.models import SystemModel
 from ea_gym.numerics import TINY
+from ea_gym.phm.config import ExtrapolationConfig
 from ea_gym.phm.estimation import ParameterEstimates
 from ea_gym.phm.history import push_window, rows_of
 
@@ -83,29 +84,6 @@ class EndOfLife:
     def rul(self) -> float:
         """Remaining useful life (s, eq 2)."""
         return self.eol - self.t
-
-
-@dataclass(frozen=True)
-class ExtrapolationConfig:
-    """Settings of the trend extrapolation.
-
-    Attributes:
-        degree: polynomial degree (the paper uses 1).
-        span: the fit uses the estimates of the last ``span`` seconds.
-        min_points: fewer estimates than this give no prediction.
-        confidence: two-sided confidence of the interval (normal quantile of the trend's uncertainty).
-        horizon: predictions further than this ahead are reported as inf (s).
-        correlated: how many consecutive estimates share data (overlapping windows, a running median):
-            their errors are correlated, the fit has that many times fewer independent points, and its
-            covariance is scaled up by as much.
-    """
-
-    degree: int = 1
-    span: float = 30.0
-    min_points: int = 5
-    confidence: float = 0.95
-    horizon: float = 2000.0
-    correlated: int = 1
 
 
 def _first_crossing(times: np.ndarray, curve: np.ndarray, level: float, below: bool) -> float:

@@ -39,7 +39,8 @@ SHIPPED_THRESHOLDS = Path(str(importlib.resources.files("ea_gym") / "data" / f"{
 
 def calibration_settings(config: PHMConfig) -> dict[str, Any]:
     """The chain settings the calibration reads: step, sample rate, noise, monitor and detector."""
-    return {"step": config.step, "sample_rate": config.sample_rate, "noise": config.noise, "monitor": config.monitor, "detector": config.detector}
+    timing = config.timing
+    return {"step": timing.step, "sample_rate": timing.sample_rate, "noise": timing.noise, "monitor": config.monitor, "detector": config.detector}
 
 
 def calibration_key(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> str:

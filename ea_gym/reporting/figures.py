@@ -84,20 +84,20 @@ def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | Non
                         results: dict | None = None) -> Path:
     """Paper Fig 9: |STFT| of the I element's EA residual series over time and frequency.
 
-    The STFT window is the isolation frame (``chain.config.frame`` in sub-windows), the hop 1 s;
+    The STFT window is the isolation frame (``chain.config.isolation.frame`` in sub-windows), the hop 1 s;
     each column is drawn at the centre time of its window; frequencies up to the model's excitation
     bandwidth. Colour: log scale, three decades below the maximum.
     """
     results = chain_results(run, chain, scenario) if results is None else results
     sub = chain.monitor.config.sub_window
-    frame = round(chain.config.frame / sub)
+    frame = round(chain.config.isolation.frame / sub)
     hop = max(round(1.0 / sub), 1)
     i = chain.monitor.inertia_index
     name = chain.monitor.elements[i]
     series = run.residual_series[i]
     fig, ax = plt.subplots(figsize=(10, 5))
     if len(series) < frame:
-        ax.text(0.5, 0.5, f"run shorter than one {chain.config.frame:g} s frame", ha="center", transform=ax.transAxes)
+        ax.text(0.5, 0.5, f"run shorter than one {chain.config.isolation.frame:g} s frame", ha="center", transform=ax.transAxes)
     else:
         frequencies, times, magnitude = residual_spectrogram(series, sub, frame, hop)
         times = times + 0.5 * sub  # sub-window j is centred at (j + 1/2) sub_window
@@ -112,7 +112,7 @@ def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | Non
         ax.set_xlim(0, float(run.t[-1]))
         if ax.get_legend_handles_labels()[0]:  # nothing to mark without a fault profile or an alarm
             ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
-    ax.set_xlabel(f"time (s, centre of the {chain.config.frame:g} s STFT window, hop {hop * sub:g} s)")
+    ax.set_xlabel(f"time (s, centre of the {chain.config.isolation.frame:g} s STFT window, hop {hop * sub:g} s)")
     ax.set_ylabel("frequency (Hz)")
     ax.set_title(f"Time-frequency map of the EA residual of the I element {name}")
     fig.tight_layout()
@@ -393,7 +393,7 @@ def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path
         ax.plot(t, reference[:, e], color="k", lw=1.0, label="reference")
         ax.plot(t, ea[:, e], color="tab:blue", lw=1.0, alpha=0.8, label="measured")
         _mark_events(ax, results, scenario, label=False)
-        ax.set_title(f"EA of {name} per {chain.config.step:g} s step", fontsize=10)
+        ax.set_title(f"EA of {name} per {chain.config.timing.step:g} s step", fontsize=10)
         ax.set_ylabel("EA (J)")
         ax.grid(alpha=0.3)
         if e == 0:

@@ -60,7 +60,7 @@ def _isolation(status: HealthStatus, chain: PHMChain) -> dict[str, Any]:
         "state": state,
         "favoured": chain.classes[favoured] if status.alarm[0] else None,
         "confidence": float(fault_belief[favoured - 1] / max(float(fault_belief.sum()), TINY)) if status.alarm[0] else 0.0,
-        "threshold": float(chain.config.isolation_confidence),
+        "threshold": float(chain.config.isolation.confidence),
     }
 
 
@@ -270,12 +270,12 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
         "eol_predictions": predictions,
         "run": {
             **({"scenario": scenario.source} if scenario is not None else {"measurements": measurements}),
-            "sample_rate": float(chain.config.sample_rate),
+            "sample_rate": float(chain.config.timing.sample_rate),
             "duration": float(run.t[-1]),
             "steps": len(statuses),
-            "noise": float(chain.config.noise),
+            "noise": float(chain.config.timing.noise),
             "estimate_lag": float(chain.estimate_lag),
-            "frame": float(chain.config.frame),
+            "frame": float(chain.config.isolation.frame),
         },
     }
     if scenario is not None and scenario.fault is not None:
