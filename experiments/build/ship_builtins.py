@@ -73,7 +73,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--retrain", action="store_true", help="retrain the networks already shipped (but the spring-mass-damper's)")
     parser.add_argument("--out", type=Path, default=PACKAGE_DATA, help="folder to write into (default the package's data, ea_gym/data)")
     args = parse_with_smoke(parser, argv, {})
-    systems, database, training = (SMOKE_SYSTEMS, SMOKE_DATABASE, SMOKE_TRAINING) if args.smoke else (sorted(MODELS), DatabaseConfig(), TrainingConfig())
+    if args.smoke:
+        systems, database, training = SMOKE_SYSTEMS, SMOKE_DATABASE, SMOKE_TRAINING
+    else:
+        systems, database, training = sorted(MODELS), DatabaseConfig(), TrainingConfig()
     for name in systems:
         if name != REPORTED and (args.retrain or not (args.out / shipped_classifier_path(name).name).is_file()):
             print(f"wrote {ship_network(name, args.out, database, training)}", flush=True)
