@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The tests that need Ray RLlib (the optional extra ea-gym[rllib]: `ea-gym train --backend rllib`,
-# `ea-gym benchmark --ray`), in a virtual environment of their own: RLlib pins an older gymnasium than
+# `ea-gym benchmark --ray`, the smoke runs of experiments/integrations/rllib_ppo.py and ray_benchmark.py),
+# in a virtual environment of their own: RLlib pins an older gymnasium than
 # .venv's. CI does not run them (they skip where ray is missing). RLLIB_VENV names another environment
 # to use (created if missing). Keep to one such run at a time: each starts a local Ray of 2 CPUs.
 set -euo pipefail
@@ -17,4 +18,5 @@ if [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
     echo "$want" > "$stamp"
 fi
 export MPLBACKEND=Agg
-"$venv/bin/python" -m pytest -q tests/test_ray.py "$@"
+smoke=tests/test_experiments.py::test_smoke_run
+"$venv/bin/python" -m pytest -q tests/test_ray.py "$smoke[integrations/rllib_ppo.py]" "$smoke[integrations/ray_benchmark.py]" "$@"

@@ -1,4 +1,4 @@
-"""experiments/bench_against.py: its stage-by-stage run of the single env times every stage it names, and
+"""experiments/benchmarks/bench_against.py: its stage-by-stage run of the single env times every stage it names, and
 its arguments are checked."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "benchmarks"))
 
 import bench_against  # noqa: E402
 

@@ -1,4 +1,4 @@
-"""experiments/compare_progpy.py: its metric helpers on hand-computed cases, and ProgPy's UKF on a noise-free run (when installed)."""
+"""experiments/studies/compare_progpy.py: its metric helpers on hand-computed cases, and ProgPy's UKF on a noise-free run (when installed)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "experiments" / "studies"))
 
 import compare_progpy as compare  # noqa: E402
 
@@ -53,7 +53,7 @@ def test_drift_rul_is_fieller_interval_of_the_linear_drift():
 
 def test_the_script_refuses_without_progpy(monkeypatch, capsys):
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "progpy" else importlib.machinery.PathFinder.find_spec(name))
-    assert compare.main(["--quick", "--out", "unused"]) == 2
+    assert compare.main(["--smoke", "--out", "unused"]) == 2
     assert capsys.readouterr().err.count("\n") == 1
 
 

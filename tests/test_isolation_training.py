@@ -1,4 +1,4 @@
-"""Tests of ea_gym.diagnosis.training (and a smoke run of experiments/train_isolation.py) on a small database.
+"""Tests of ea_gym.diagnosis.training on a small database (experiments/build/train_isolation.py's smoke run is in test_experiments.py).
 
 The database here is far smaller than the shipped one (intervals=10, 8 loads, noise 0 only, frames
 ending at 30 and 40 s: 296 runs, 592 frames, 90 of them test frames; about 2 s to simulate and train)
@@ -7,7 +7,6 @@ so that the whole file runs in well under 30 s.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
@@ -28,8 +27,6 @@ from ea_gym.diagnosis.training import (
 )
 from ea_gym.models import spring_mass_damper
 from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads
-
-ROOT = Path(__file__).resolve().parents[1]
 
 SMALL = DatabaseConfig(intervals=10, n_loads=8, fault_free_runs=4, noise_levels=(0.0,), frame=20.0, frame_ends=(30.0, 40.0))
 SEED = 0
@@ -138,7 +135,7 @@ def test_shipped_classifier_path() -> None:
 
 
 def test_unknown_model_names_the_script() -> None:
-    with pytest.raises(FileNotFoundError, match=r"python experiments/train_isolation\.py"):
+    with pytest.raises(FileNotFoundError, match=r"python experiments/build/train_isolation\.py"):
         load_shipped_classifier("no_such_model")
     with pytest.raises(ValueError, match="variant"):
         load_shipped_classifier("spring_mass_damper", "weak")
@@ -147,7 +144,7 @@ def test_unknown_model_names_the_script() -> None:
 @pytest.mark.parametrize("variant", VARIANTS)
 def test_shipped_classifier_matches_the_features(trained: IsolationTraining, variant: str) -> None:
     if not shipped_classifier_path("spring_mass_damper", variant).is_file():
-        pytest.skip("run python experiments/train_isolation.py to write the shipped classifiers")
+        pytest.skip("run python experiments/build/train_isolation.py to write the shipped classifiers")
     classifier = load_shipped_classifier("spring_mass_damper", variant)
     assert classifier.variant == variant
     assert classifier.classes == trained.database.classes
@@ -155,27 +152,6 @@ def test_shipped_classifier_matches_the_features(trained: IsolationTraining, var
     assert classifier.n_features == trained.database.features[variant].shape[1]
     probabilities = classifier.predict_proba(trained.database.features[variant][:5])
     assert probabilities.shape == (5, 4) and np.allclose(probabilities.sum(axis=1), 1.0)
-
-
-def test_script_writes_its_results(tmp_path: Path) -> None:
-    spec = importlib.util.spec_from_file_location("train_isolation", ROOT / "experiments" / "train_isolation.py")
-    script = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(script)
-    out = tmp_path / "isolation"
-    argv = ["--no-ship", "--out", str(out), "--intervals", "4", "--loads", "2", "--fault-free-runs", "3",
-            "--noise-levels", "0", "0.05", "--frame-ends", "30", "40", "--epochs", "50"]
-    assert script.main(argv) == 0
-    names = {p.name for p in out.iterdir()}
-    assert {"isolation.json", "isolation.md", "fig8_peaks.png", "confusion.png", "accuracy_vs_magnitude.png"} <= names
-    assert not any(name.startswith(".") for name in names)  # no temporary files left behind
-    report = json.loads((out / "isolation.json").read_text())
-    assert report["shipped"] == []
-    assert report["database"]["frames"] == sum(report["database"]["split_frames"].values())
-    assert set(report["evaluation"]["variants"]) == set(VARIANTS)
-    assert report["evaluation"]["noise_levels"] == [0.0, 0.05]
-    text = (out / "isolation.md").read_text()
-    assert "python experiments/train_isolation.py --no-ship" in text
-    assert "STFT" in text and "energy balance" in text
 
 
 def test_single_threaded_torch_restores_the_thread_count() -> None:

@@ -5,7 +5,7 @@ trains one :class:`~ea_gym.diagnosis.classifier.FaultClassifier` per feature var
 runs (split 0), keeping the epoch with the best accuracy on the validation runs (split 1), and scores
 every variant on the same held-out test runs (split 2) with :func:`evaluate_isolation`.
 
-The networks trained by ``experiments/train_isolation.py`` ship inside the package as
+The networks trained by ``experiments/build/train_isolation.py`` ship inside the package as
 ``ea_gym/data/{model}_{variant}.safetensors``; :func:`load_shipped_classifier` reads them.
 
 Populations of the evaluation (test frames of one noise level):
@@ -61,7 +61,7 @@ QUARTER = 0.25
 #: Fault-magnitude bins of the accuracy-vs-magnitude curve; the last one includes 1.0.
 MAGNITUDE_BINS: tuple[tuple[float, float], ...] = ((0.0, 0.25), (0.25, 0.5), (0.5, 0.75), (0.75, 1.0))
 #: The script that (re)writes the shipped classifiers.
-REGENERATE_COMMAND = "python experiments/train_isolation.py"
+REGENERATE_COMMAND = "python experiments/build/train_isolation.py"
 #: raise it when training computes a different network from the same inputs: every cached network is then retrained
 ISOLATION_FORMAT = 1
 #: the seed of every network trained for the cache, and of the shipped ones

@@ -3,7 +3,7 @@
 :func:`calibrate_thresholds` simulates fault-free runs (seconds); its result depends only on the model,
 the settings of :func:`calibration_settings` and the state of the generator it draws from, so
 :func:`thresholds_for` looks that up first: in ``ea_gym/data/thresholds.json`` (the built-ins at the
-environments' default settings, written by ``experiments/ship_builtins.py``), then in the cache
+environments' default settings, written by ``experiments/build/ship_builtins.py``), then in the cache
 (:mod:`ea_gym.cache`), and calibrates (and caches) only when neither has it. The generator is left as the
 calibration leaves it, so what is drawn from it afterwards is the same whether or not the thresholds
 were calibrated.
@@ -79,7 +79,7 @@ def thresholds_for(model: SystemModel, config: PHMConfig, rng: np.random.Generat
         if thresholds is not None:
             return thresholds
         if shipped is not None:
-            raise ValueError(f"{SHIPPED_THRESHOLDS}: the entry {key} is malformed; regenerate it with experiments/ship_builtins.py")
+            raise ValueError(f"{SHIPPED_THRESHOLDS}: the entry {key} is malformed; regenerate it with experiments/build/ship_builtins.py")
         warn_rebuilt(entry_path(_KIND, key, ".json"), "malformed thresholds or generator state")
     thresholds = calibrate_thresholds(model, config, rng)
     try:

@@ -14,8 +14,8 @@ its signals last (the environment's ``step_seconds`` > its window, the plant's p
 each window), theta moves by the drift between windows and holds within them.
 
 Process noise and priors (``TrackingConfig``) were chosen on issue 17's three ramps with sensor seeds
-10..49, distinct from the evaluation seeds 0..4 (``experiments/tracking_accuracy.py --tune``), and the
-environment's RUL past half-way at reset seed 1000 (``experiments/estimates_in_env.py --seed 1000``;
+10..49, distinct from the evaluation seeds 0..4 (``experiments/studies/tracking_accuracy.py --tune``), and the
+environment's RUL past half-way at reset seed 1000 (``experiments/studies/estimates_in_env.py --seed 1000``;
 its acceptance runs at seed 0): none on the states (the filter's model is the plant's own
 discretization; state noise lets the filter explain a damper's slow decay away as state noise: b's
 error was 3x worse at 1e-3), theta 1e-4 / sqrt(s), the drift 4e-5 / s^1.5 (relative), a prior of 2 %

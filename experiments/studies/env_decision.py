@@ -30,7 +30,7 @@ What it measures
     difference's 95 % interval lies above 0.
 
 How to run (from the repository root)
-    .venv/bin/python experiments/env_decision.py [--episodes 30] [--tune-episodes 10] [--out DIR]
+    .venv/bin/python experiments/studies/env_decision.py [--episodes 30] [--tune-episodes 10] [--out DIR] [--smoke]
 
     Writes ``DIR/decision.json`` and ``DIR/decision.md`` (default DIR:
     experiments/results/env_decision), atomically. About 6 to 10 minutes with the defaults (the PHM
@@ -51,14 +51,8 @@ from typing import Any
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-try:  # runnable as ``python experiments/env_decision.py`` without an up-to-date install
-    import ea_gym
-    from agents import evaluate
-except ImportError:  # pragma: no cover - depends on how the script is started
-    sys.path.insert(0, str(ROOT))
-    for name in [m for m in sys.modules if m == "agents" or m.startswith("agents.")]:
-        del sys.modules[name]
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's ea_gym, agents and experiments.common, installed or not
 
 import ea_gym  # noqa: F401 - registers the environments
 from agents import ActionMap, EpisodeStats, Oracle, Periodic, RulThreshold, RunToFailure, evaluate, tune
@@ -68,8 +62,11 @@ from agents.benchmark import fmt_diff as _fmt_diff
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.files import write_json, write_text
+from experiments.common import parse_with_smoke
 
 DEFAULT_OUT = ROOT / "experiments" / "results" / "env_decision"
+#: the smoke run: one tuning episode per grid value of two, two evaluation episodes per policy
+SMOKE = {"episodes": 2, "tune_episodes": 1, "periods": [60.0, 120.0], "thresholds": [5.0, 20.0], "no_progress": True}
 
 
 def _number(value: float) -> float | str:
@@ -132,11 +129,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--thresholds", type=float, nargs="+", default=THRESHOLDS, help=f"RUL threshold grid, s (default {THRESHOLDS})")
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder")
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.episodes < 2 or args.tune_episodes < 1:
         parser.error("--episodes must be >= 2 and --tune-episodes >= 1")
     progress = not args.no_progress
-    command = shlex.join([".venv/bin/python", "experiments/env_decision.py", *(sys.argv[1:] if argv is None else argv)])
+    command = shlex.join([".venv/bin/python", "experiments/studies/env_decision.py", *(sys.argv[1:] if argv is None else argv)])
 
     started = time.perf_counter()
     timings: dict[str, float] = {}

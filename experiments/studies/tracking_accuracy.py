@@ -9,10 +9,11 @@ from onset to End of Life), the share of those predictions whose 95 % interval c
 (unbounded intervals count as misses), ProgPy's UKF numbers from the issue beside them; whether the
 true hypothesis holds the largest log-evidence; and the time per step at N = 1 and N = 256.
 
-    python experiments/tracking_accuracy.py            # the table (evaluation seeds 0..4)
-    python experiments/tracking_accuracy.py --systems  # every built-in's parameters, random loads
-    python experiments/tracking_accuracy.py --wear 1e-4  # RUL under linear / Wiener / gamma wear
-    python experiments/tracking_accuracy.py --tune     # process-noise and prior grid on the three ramps, tuning seeds 10..49
+    python experiments/studies/tracking_accuracy.py            # the table (evaluation seeds 0..4)
+    python experiments/studies/tracking_accuracy.py --systems  # every built-in's parameters, random loads
+    python experiments/studies/tracking_accuracy.py --wear 1e-4  # RUL under linear / Wiener / gamma wear
+    python experiments/studies/tracking_accuracy.py --tune     # process-noise and prior grid on the three ramps, tuning seeds 10..49
+    python experiments/studies/tracking_accuracy.py --smoke    # the table on seed 0, the speed at N = 1 and 4
 """
 
 from __future__ import annotations
@@ -26,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym and experiments.common, installed or not
 
 from ea_gym.models import get_model
 from ea_gym.phm.config import ExtrapolationConfig, TrackingConfig
@@ -36,12 +37,15 @@ from ea_gym.phm.tracking import TrackingEstimator
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
+from experiments.common import parse_with_smoke
 
-SCENARIOS = Path(__file__).resolve().parent / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
 # ProgPy UKF from issue 17: median, max error; alpha-lambda; coverage
 UKF = {"k": (0.015, 0.15, 1.00, 0.95), "b": (0.0027, 0.009, 0.83, 0.96), "m": (0.0015, 0.018, 1.00, 1.00)}
 STEP = 1.0  # s of signal per update, the chain's default
+#: the smoke run: the table on one seed, the speed on a small batch
+SMOKE = {"seeds": 1, "sizes": [1, 4]}
 
 
 @dataclass
@@ -295,12 +299,14 @@ def wear_table(config: TrackingConfig, runs: int = 6) -> None:
         print(f"| {process} | {parameter} | {np.median(errors):.3f} | {np.mean(covered):.2f} | {len(errors)} |", flush=True)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--tune", action="store_true", help="process-noise and prior grid on the tuning seeds 10..49 instead of the table")
     parser.add_argument("--systems", action="store_true", help="every built-in's parameters under random loads instead of the table")
     parser.add_argument("--wear", type=float, metavar="THETA_NOISE", help="RUL under the environment's wear processes, at this theta_noise")
-    args = parser.parse_args()
+    parser.add_argument("--seeds", type=int, default=5, help="the table's evaluation seeds 0..SEEDS-1 (default 5)")
+    parser.add_argument("--sizes", type=int, nargs="+", default=[1, 256], help="numbers of systems N timed (default 1 256)")
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.tune:
         tune()
         return
@@ -310,8 +316,8 @@ def main() -> None:
     if args.wear is not None:
         wear_table(replace(TrackingConfig(), theta_noise=args.wear))
         return
-    print_table(accuracy(range(5), TrackingConfig()))
-    for n in (1, 256):
+    print_table(accuracy(range(args.seeds), TrackingConfig()))
+    for n in args.sizes:
         seconds = speed(n)
         print(f"N = {n:3d} systems x 3 hypotheses (+ none): {1e3 * seconds:.3f} ms per 1 s step ({n / seconds:.0f} system-steps/s)")
 

@@ -17,9 +17,9 @@ What it measures
     episodes, 480 each, which 30 episodes mostly miss); ``--tune --write-tuned PATH`` writes them.
 
 How to run (from the repository root)
-    .venv/bin/python experiments/benchmark_policies.py [--episodes 100] [--seed 0]
+    .venv/bin/python experiments/benchmarks/benchmark_policies.py [--episodes 100] [--seed 0]
         [--tune [--tune-episodes 300] [--write-tuned PATH] | --tuned PATH [--allow-stale]]
-        [--ppo DIR | --no-ppo] [--out DIR] [--no-progress] [--trust-pickle]
+        [--ppo DIR | --no-ppo] [--out DIR] [--no-progress] [--trust-pickle] [--smoke]
 
     Writes DIR/benchmark.json, benchmark.md, cost_distribution.png, timelines.png and timelines.json
     (default DIR: experiments/results/benchmark), atomically, with the exact command in the markdown.
@@ -37,19 +37,17 @@ import time
 from pathlib import Path
 from typing import Any
 
-ROOT = Path(__file__).resolve().parents[1]
-try:  # runnable as ``python experiments/benchmark_policies.py`` without an up-to-date install
-    from agents.benchmark.run import run_benchmark
-except ImportError:  # pragma: no cover - depends on how the script is started
-    sys.path.insert(0, str(ROOT))
-    for name in [m for m in sys.modules if m == "agents" or m.startswith("agents.")]:
-        del sys.modules[name]
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's agents and experiments.common, installed or not
 
-from agents.benchmark.run import TUNE_EPISODES, run_benchmark  # noqa: E402
+from agents.benchmark.run import TUNE_EPISODES, run_benchmark
+from experiments.common import parse_with_smoke
 
 DATA = ROOT / "agents" / "data"
 DEFAULT_OUT = ROOT / "experiments" / "results" / "benchmark"
 EXTRA_PPO = ("ppo_sensors", "ppo_oracle")
+#: the smoke run: two evaluation episodes per policy, the committed tuned settings
+SMOKE = {"episodes": 2, "no_progress": True}
 
 
 def _relative(path: Path) -> str:
@@ -76,7 +74,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--no-progress", action="store_true", help="no progress bars")
     parser.add_argument("--trust-pickle", action="store_true",
                         help="also load agents saved as stable-baselines3's files (model.zip, vecnormalize.pkl), which run any code they hold")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.episodes < 2 or (args.tune_episodes is not None and args.tune_episodes < 1):
         parser.error("--episodes must be >= 2 and --tune-episodes >= 1")
     if not args.tune and (args.tune_episodes is not None or args.write_tuned is not None):
@@ -85,7 +83,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     default_ppo = DATA / "ppo_phm"
     main_ppo = None if args.no_ppo else (args.ppo if args.ppo is not None else (default_ppo if default_ppo.is_dir() else None))
     extra = {name: DATA / name for name in EXTRA_PPO}
-    words = [".venv/bin/python", "experiments/benchmark_policies.py", *(sys.argv[1:] if argv is None else argv)]
+    words = [".venv/bin/python", "experiments/benchmarks/benchmark_policies.py", *(sys.argv[1:] if argv is None else argv)]
     command = shlex.join(words)
     cli = ["ea-gym", "benchmark", "--episodes", str(args.episodes), "--seed", str(args.seed), "--out", _relative(args.out)]
     if args.tune:

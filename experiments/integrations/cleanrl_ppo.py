@@ -15,7 +15,7 @@ What it does
     of the vector env; the mean cost per episode of each is printed and written.
 
 How to run (from the repository root)
-    .venv/bin/python experiments/cleanrl_ppo.py [--total-timesteps 16384] [--num-envs 16] [--out DIR]
+    .venv/bin/python experiments/integrations/cleanrl_ppo.py [--total-timesteps 16384] [--num-envs 16] [--out DIR] [--smoke]
 
     Writes ``DIR/cleanrl_ppo.json`` (default DIR: experiments/results/cleanrl_ppo): the settings, each
     update's mean cost of the episodes ended in it, the evaluation costs and the wall times. The
@@ -37,17 +37,17 @@ import numpy as np
 import torch
 from torch import nn
 
-ROOT = Path(__file__).resolve().parents[1]
-try:
-    import ea_gym  # noqa: F401 - registers the environments
-except ImportError:  # run from a checkout without installing
-    sys.path.insert(0, str(ROOT))
-    import ea_gym  # noqa: F401
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's ea_gym and experiments.common, installed or not
 
+import ea_gym  # noqa: F401 - registers the environments
 from ea_gym.env import ENV_ID
 from ea_gym.files import write_atomic
+from experiments.common import parse_with_smoke
 
 EVALUATION_SEED = 100_000  # the benchmark's evaluation seeds start here; training seeds are below
+#: the smoke run: two updates of 2 x 16 steps, one minibatch pass each, one evaluation episode
+SMOKE = {"total_timesteps": 64, "num_envs": 2, "num_steps": 16, "minibatches": 2, "epochs": 1, "eval_episodes": 1}
 
 
 def flatten(observation: dict[str, np.ndarray]) -> np.ndarray:
@@ -141,7 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--eval-episodes", type=int, default=8)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--out", type=Path, default=ROOT / "experiments" / "results" / "cleanrl_ppo")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     for name in ("total_timesteps", "num_envs", "num_steps", "minibatches", "epochs", "eval_episodes"):
         if getattr(args, name) < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1, got {getattr(args, name)}")
@@ -235,7 +235,7 @@ def main(argv: list[str] | None = None) -> int:
     ppo_costs = evaluate(greedy, args.obs_mode, seeds)
     carry_on_costs = evaluate(lambda observation: np.zeros(len(seeds), dtype=np.int64), args.obs_mode, seeds)
     report = {
-        "command": " ".join(["python experiments/cleanrl_ppo.py", *(argv if argv is not None else sys.argv[1:])]),
+        "command": " ".join(["python experiments/integrations/cleanrl_ppo.py", *(argv if argv is not None else sys.argv[1:])]),
         "settings": {key: str(value) if isinstance(value, Path) else value for key, value in vars(args).items() if key != "out"},
         "versions": {"torch": torch.__version__, "gymnasium": gym.__version__, "numpy": np.__version__, "python": platform.python_version()},
         "updates": updates_log,

@@ -15,7 +15,7 @@ What it checks
 
 How to run (from the repository root; torchrl is not a dependency of the project)
     .venv/bin/pip install -c constraints.txt -e '.[torchrl]'   # torchrl 0.14.1, tensordict 0.14.3, torch 2.13.0
-    .venv/bin/python experiments/torchrl_check.py [--envs 4] [--steps 60] [--horizon 12] [--out DIR]
+    .venv/bin/python experiments/integrations/torchrl_check.py [--envs 4] [--steps 60] [--horizon 12] [--out DIR] [--smoke]
 
     Writes ``DIR/torchrl_check.json`` (default DIR: experiments/results/torchrl). About a minute.
 """
@@ -34,19 +34,19 @@ import gymnasium as gym
 import numpy as np
 import torch
 
-ROOT = Path(__file__).resolve().parents[1]
-try:
-    import ea_gym  # noqa: F401 - registers the environments
-except ImportError:  # run from a checkout without installing
-    sys.path.insert(0, str(ROOT))
-    import ea_gym  # noqa: F401
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's ea_gym and experiments.common, installed or not
 
+import ea_gym  # noqa: F401 - registers the environments
 from ea_gym.degradation import WearConfig
 from ea_gym.env import ENV_ID
 from ea_gym.files import write_atomic
+from experiments.common import parse_with_smoke
 
 FAST_WEAR = {c: WearConfig(rate=(0.1, 0.2), arrival=(0.0, 6.0)) for c in ("k", "m", "b")}  # failures within ~10 steps
 INFO_KEYS = ("true_rul", "failed")
+#: the smoke run: two systems, episodes of 4 steps
+SMOKE = {"envs": 2, "steps": 12, "horizon": 4}
 
 
 class SeededPolicy:
@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--horizon", type=int, default=12, help="episode horizon (steps)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", type=Path, default=ROOT / "experiments" / "results" / "torchrl")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     import tensordict
     import torchrl
 
@@ -168,7 +168,7 @@ def main(argv: list[str] | None = None) -> int:
     except RuntimeError as error:
         next_step = f"refused by TorchRL: {error}"
     report = {
-        "command": " ".join(["python experiments/torchrl_check.py", *(argv if argv is not None else sys.argv[1:])]),
+        "command": " ".join(["python experiments/integrations/torchrl_check.py", *(argv if argv is not None else sys.argv[1:])]),
         "versions": {
             "torchrl": torchrl.__version__, "tensordict": tensordict.__version__, "torch": torch.__version__,
             "gymnasium": gym.__version__, "numpy": np.__version__, "python": platform.python_version(),

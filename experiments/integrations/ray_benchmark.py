@@ -12,8 +12,9 @@ What it measures
     before and after, and whether its records (every policy's per-episode records, the ranking, the
     tuning tables, the value of information, the seeds) and its ``timelines.json`` equal the local run's.
 
-Run (in the virtual environment with the rllib extra, on a quiet machine; README, RLlib, Ray and rl-zoo3):
-    .venv-rllib/bin/python experiments/ray_benchmark.py --out experiments/results/ray_benchmark
+Run from a checkout's root, in the virtual environment with the rllib extra (``bash scripts/test_ray.sh`` makes one),
+on a quiet machine:
+    .venv-rllib/bin/python experiments/integrations/ray_benchmark.py --out experiments/results/ray_benchmark [--smoke]
 Writes OUT/summary.json (the benchmarks' own outputs go to a temporary directory).
 """
 
@@ -30,27 +31,29 @@ import time
 from pathlib import Path
 from typing import Any
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym, agents and experiments.common, installed or not
 
 from agents.benchmark.run import run_benchmark
 from agents.benchmark.runners import RayRunner
 from ea_gym.files import write_json
+from experiments.common import parse_with_smoke
 
 RECORDS = ("policies", "ranking", "tuning", "value_of_information", "seeds")
-AGENT = Path(__file__).resolve().parents[1] / "agents" / "data" / "ppo_phm"
+AGENT = Path(__file__).resolve().parents[2] / "agents" / "data" / "ppo_phm"
 #: the runs: name -> the local Ray's CPUs (None: this process, no Ray)
 RUNS = {"local": None, "ray_1_cpu": 1, "ray_2_cpus": 2}
+#: the smoke run: every run once on two episodes
+SMOKE = {"episodes": 2, "repeats": 1}
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("experiments/results/ray_benchmark"))
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "results" / "ray_benchmark")
     parser.add_argument("--episodes", type=int, default=100)
     parser.add_argument("--tune-episodes", type=int, default=None, help="re-tune the rules on K episodes per grid value first (default: no tuning)")
     parser.add_argument("--repeats", type=int, default=2)
     parser.add_argument("--no-ppo", action="store_true")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
 
     import ray
 
@@ -85,7 +88,7 @@ def main(argv: list[str] | None = None) -> int:
     best = {name: min(r["wall_time_s"] for r in done) for name, done in runs.items()}
     median = {name: statistics.median(r["wall_time_s"] for r in done) for name, done in runs.items()}
     write_json(args.out / "summary.json", {
-        "command": ".venv-rllib/bin/python experiments/ray_benchmark.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": ".venv-rllib/bin/python experiments/integrations/ray_benchmark.py " + " ".join(argv if argv is not None else sys.argv[1:]),
         "settings": {"episodes": args.episodes, "tune_episodes": args.tune_episodes, "repeats": args.repeats,
                      "ppo": None if args.no_ppo else "agents/data/ppo_phm", "tuned": "re-tuned" if tuning else "committed"},
         "runs": runs,

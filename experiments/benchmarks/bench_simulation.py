@@ -22,7 +22,7 @@ What it measures
     difference (q and p, ea_gym vs RK45) <= 1e-6; MISS otherwise.
 
 How to run (from the repository root)
-    python experiments/bench_simulation.py [--duration 1000] [--rate 100] [--repeats 5] [--json PATH]
+    python experiments/benchmarks/bench_simulation.py [--duration 1000] [--rate 100] [--repeats 5] [--json PATH] [--smoke]
 
 The machine and library versions are printed with the results; timings depend on machine load.
 """
@@ -41,17 +41,13 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
-try:  # runnable as ``python experiments/bench_simulation.py`` from a checkout without installing
-    import ea_gym  # noqa: F401
-except ImportError:  # pragma: no cover - depends on how the script is started
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-
-from machine import machine_info  # noqa: E402 - experiments/machine.py
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym and experiments.common, installed or not
 
 from ea_gym.files import write_json
 from ea_gym.loads import Sine, SinesLoad
 from ea_gym.models import SystemModel, spring_mass_damper
 from ea_gym.plant import run_model
+from experiments.common import machine_info, parse_with_smoke
 
 #: Targets of the verdict line.
 TARGET_RATIO = 20.0
@@ -68,6 +64,8 @@ F_FREQUENCY = 0.3  # Hz
 RK45_RTOL = 1e-8
 RK45_ATOL_FACTOR = 1e-10
 REF_TOL = 1e-12
+#: the smoke run: 20 s of signal, one timed call
+SMOKE = {"duration": 20.0, "repeats": 1}
 
 
 class Scenario:
@@ -153,7 +151,6 @@ def rel_diff(a: np.ndarray, b: np.ndarray, scale: np.ndarray) -> float:
     return float(np.max(np.abs(a - b)) / np.max(np.abs(scale)))
 
 
-
 def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
         description=(
@@ -171,7 +168,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         "--repeats", type=int, default=5, help="timed ea_gym calls after the warm-up; solve_ivp runs min(3, repeats)"
     )
     parser.add_argument("--json", type=Path, default=None, metavar="PATH", help="also write the numbers as JSON to PATH (atomic)")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if not (math.isfinite(args.duration) and args.duration > 0):
         parser.error(f"--duration must be a finite number > 0 s, got {args.duration}")
     if not (math.isfinite(args.rate) and args.rate > 0):

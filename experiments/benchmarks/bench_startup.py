@@ -16,7 +16,7 @@ numba's compiled kernels are cached beside their sources (``cache=True``) and re
 seconds). The machine's load average is printed with the numbers: on a shared machine it moves them.
 
 How to run (from the repository root; about a minute)
-    python experiments/bench_startup.py [--repeats 5] [--cases default ...] [--numba-cold]
+    python experiments/benchmarks/bench_startup.py [--repeats 5] [--cases default ...] [--numba-cold] [--smoke]
 """
 
 from __future__ import annotations
@@ -32,13 +32,19 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's experiments.common, installed or not
+
+from experiments.common import parse_with_smoke
+
 STAGES = ("import", "make", "reset", "step")
 CASES = {
     "default": ("ea_gym/SpringMassDamper-v0", {}),
     "noise 0.02": ("ea_gym/SpringMassDamper-v0", {"noise": 0.02}),
     "rlc_circuit": ("ea_gym/BondGraphMaintenance-v0", {"system": "rlc_circuit"}),
 }
+#: the smoke run: one process per cache state of the default case
+SMOKE = {"repeats": 1, "cases": ["default"]}
 # what the child process runs: the stages' wall times as one JSON line
 CHILD = """
 import json, sys, time
@@ -85,12 +91,12 @@ def summary(label: str, runs: list[dict[str, float]]) -> str:
     return f"{label:<26} {len(runs):>2} {stages}  {statistics.median(totals):6.2f} {min(totals):6.2f} {max(totals):6.2f} {cpu:6.2f}  {torch}"
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--repeats", type=int, default=5, help="processes per case and cache state (default 5)")
     parser.add_argument("--cases", nargs="+", choices=list(CASES), default=list(CASES), help="the cases to measure (default all)")
     parser.add_argument("--numba-cold", action="store_true", help="also one run with numba's cache empty (slow)")
-    args = parser.parse_args()
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.repeats < 1:
         parser.error("--repeats: expected a positive integer")
     print(f"load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())} ({os.cpu_count()} cores)")

@@ -26,9 +26,9 @@ share of those whose 95 % interval covers the true RUL, unbounded intervals coun
 hits, beside it); isolation right at the true End of Life, runs out of runs.
 
     pip install -e '.[compare]'
-    python experiments/compare_progpy.py                  # -> experiments/results/compare_progpy/
-    python experiments/compare_progpy.py --quick          # mass ramp, seed 0, the UKF at 20 Hz, no tuning
-    python experiments/compare_progpy.py --ukf-from experiments/results/compare_progpy/results.json
+    python experiments/studies/compare_progpy.py          # -> experiments/results/compare_progpy/
+    python experiments/studies/compare_progpy.py --smoke  # mass ramp, seed 0, the UKF at 20 Hz, no tuning
+    python experiments/studies/compare_progpy.py --ukf-from experiments/results/compare_progpy/results.json
 
 ``--ukf-from`` runs the chain alone and takes the UKF's rows (its tuning, settings and every run's
 track, rescored here) from an earlier complete run's results.json: the UKF sees only the recorded
@@ -50,7 +50,7 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym and experiments.common, installed or not
 
 from ea_gym.energy import window_samples
 from ea_gym.files import json_ready, save_figure, write_json, write_text
@@ -60,13 +60,16 @@ from ea_gym.phm import ESTIMATORS, ChainTiming, PHMChain, PHMConfig, build_chain
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
+from experiments.common import parse_with_smoke
 
-SCENARIOS = Path(__file__).resolve().parent / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
 SEED_SHIFT = 100  # seed i runs with sensors.seed + 100 i
 TUNING_SEEDS = (10, 11, 12)  # the spring scenario's seeds the UKF's process noise is chosen on
 DRIFT_NOISE_GRID = (1e-5, 3e-5, 1e-4, 3e-4)
-DEFAULT_DRIFT_NOISE = 3e-5  # used without tuning (--quick); the grid's choice at 20 Hz
+DEFAULT_DRIFT_NOISE = 3e-5  # used without tuning (--smoke); the grid's choice at 20 Hz
+#: the smoke run: the mass ramp, seed 0, the UKF at 20 Hz, not tuned
+SMOKE = {"scenarios": ["mass_m_ramp"], "seeds": [0], "ukf_rate": 20.0, "drift_noise": DEFAULT_DRIFT_NOISE}
 STEP = 1.0  # s of signal per chain update and between predictions
 SETTLE = 10.0  # s after onset from which estimate errors count
 ALPHA = 0.2
@@ -605,10 +608,9 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                         help="the chain's estimator, PHMConfig.estimator_kind (repeat for several; default: PHMConfig's default)")
     parser.add_argument("--ukf-rate", type=float, default=None, help="UKF steps per s (Hz), a divisor of the sample rate (default: the sample rate)")
     parser.add_argument("--drift-noise", type=float, default=None, help="the UKF's drift noise, not tuned (default: tuned on seeds 10..12)")
-    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parent / "results" / "compare_progpy", help="output folder")
-    parser.add_argument("--quick", action="store_true", help="mass ramp, seed 0, the UKF at 20 Hz, no tuning: a smoke run")
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "results" / "compare_progpy", help="output folder")
     parser.add_argument("--ukf-from", type=Path, default=None, help="run the chain alone, the UKF's rows from this earlier results.json")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if any(seed < 0 for seed in args.seeds):
         parser.error(f"--seeds: must be >= 0, got {args.seeds}")
     if args.ukf_rate is not None and not args.ukf_rate > 0:
@@ -617,12 +619,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
         parser.error(f"--drift-noise: must be >= 0, got {args.drift_noise}")
     if args.ukf_from is not None and not args.ukf_from.is_file():
         parser.error(f"--ukf-from: expected an earlier results.json of this script, {args.ukf_from} is not a file")
-    if args.ukf_from is not None and (args.quick or args.ukf_rate is not None or args.drift_noise is not None):
-        parser.error("--ukf-from: the UKF's settings come from that file; leave out --quick, --ukf-rate and --drift-noise")
-    if args.quick:
-        args.scenarios = ["mass_m_ramp"] if "--scenarios" not in (argv or sys.argv) else args.scenarios
-        args.seeds, args.ukf_rate = args.seeds[:1], args.ukf_rate or 20.0
-        args.drift_noise = DEFAULT_DRIFT_NOISE if args.drift_noise is None else args.drift_noise
+    if args.ukf_from is not None and (args.smoke or args.ukf_rate is not None or args.drift_noise is not None):
+        parser.error("--ukf-from: the UKF's settings come from that file; leave out --smoke, --ukf-rate and --drift-noise")
     return args
 
 

@@ -24,9 +24,9 @@ Targets (issue 17): median relative error <= 0.2 and coverage >= 0.9 for each fa
 Spearman >= 0.9. Writes results.json, table.md and rul.png (estimated against true RUL) into
 experiments/results/estimates_in_env/<estimator>/.
 
-    python experiments/estimates_in_env.py                          # 30 episodes per fault type
-    python experiments/estimates_in_env.py --estimator tracking --episodes 30
-    python experiments/estimates_in_env.py --quick                  # smoke run: 1 episode per fault type, fast wear
+    python experiments/studies/estimates_in_env.py                  # 30 episodes per fault type
+    python experiments/studies/estimates_in_env.py --estimator tracking --episodes 30
+    python experiments/studies/estimates_in_env.py --smoke          # 1 episode per fault type, fast wear
 """
 
 from __future__ import annotations
@@ -43,19 +43,21 @@ import gymnasium
 import numpy as np
 from scipy.stats import spearmanr
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym and experiments.common, installed or not
 
 from ea_gym.degradation import WearConfig
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.phm import ESTIMATORS, PHMConfig
 from ea_gym.pyplot import plt
+from experiments.common import parse_with_smoke
 
 FAULTS = ("k", "m", "b")
-RESULTS = Path(__file__).resolve().parent / "results" / "estimates_in_env"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "estimates_in_env"
 TARGETS = {"median_relative_error": 0.2, "coverage": 0.9, "spearman": 0.9}
-# --quick: the fault at once and at the fastest default rate (failure after 1 / 0.015 = 67 s), a smoke run
-QUICK_WEAR = WearConfig(rate=(0.015, 0.015), arrival=(0.0, 0.0))
+# --smoke: one episode per fault type, the fault at once and at the fastest default rate (failure after 1 / 0.015 = 67 s)
+SMOKE = {"episodes": 1}
+SMOKE_WEAR = WearConfig(rate=(0.015, 0.015), arrival=(0.0, 0.0))
 
 
 @dataclass
@@ -219,11 +221,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--episodes", type=int, default=30, help="episodes per fault type (default 30)")
     parser.add_argument("--seed", type=int, default=0, help="reset seed of the first fault type's first episode")
     parser.add_argument("--horizon", type=int, default=None, help="steps per episode (default: the environment's)")
-    parser.add_argument(
-        "--quick", action="store_true", help="a smoke run: 1 episode per fault type, the fault arriving at once at the fastest default rate"
-    )
     parser.add_argument("--out", type=Path, default=None, help="output folder (default experiments/results/estimates_in_env/<estimator>)")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.episodes < 1:
         parser.error(f"--episodes must be >= 1, got {args.episodes}")
     return args
@@ -231,8 +230,7 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    episodes = 1 if args.quick else args.episodes
-    result = measure(args.estimator, episodes, args.seed, args.horizon, QUICK_WEAR if args.quick else WearConfig())
+    result = measure(args.estimator, args.episodes, args.seed, args.horizon, SMOKE_WEAR if args.smoke else WearConfig())
     out = args.out if args.out is not None else RESULTS / args.estimator
     write_json(out / "results.json", json_ready(result))
     write_text(out / "table.md", table(result))

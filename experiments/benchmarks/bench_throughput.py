@@ -21,14 +21,15 @@ the process used per wall second (below 1 on a machine others load), the env-ste
 (less sensitive to that load than the wall rate) and the 1-minute load average when it was taken.
 ``--profile`` adds, per regime, a cProfile of the batched env at N = 256 on one kernel thread (cProfile
 sees the calling thread only) summarised by stage.
-Speed-ups between two commits are best stated with ``experiments/bench_against.py`` (alternating
+Speed-ups between two commits are best stated with ``experiments/benchmarks/bench_against.py`` (alternating
 fresh processes).
 
 ``--repeats K`` measures every row K times (a fresh env each time) and shows the median run with the range:
 on two threads the figures of this VM vary by +-15 % from run to run, on one by a few per cent.
 
-Run: ``python experiments/bench_throughput.py [--sizes 1 16 256 1024] [--regimes healthy alarm ppo]
-[--repeats K] [--profile] [--json PATH]``; the defaults take a few minutes on an unloaded 2-core machine.
+Run from a checkout's root: ``python experiments/benchmarks/bench_throughput.py [--sizes 1 16 256 1024]
+[--regimes healthy alarm ppo] [--repeats K] [--profile] [--json PATH] [--smoke]``; the defaults take a few minutes
+on an unloaded 2-core machine.
 """
 
 from __future__ import annotations
@@ -48,27 +49,24 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.vector import SyncVectorEnv
 
-try:
-    import ea_gym  # noqa: F401
-except ImportError:  # run from a checkout without installing
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import ea_gym  # noqa: F401
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's ea_gym, agents and experiments.common, installed or not
 
-ROOT = Path(__file__).resolve().parents[1]
-if str(ROOT) not in sys.path:  # the agents package sits beside ea_gym in a checkout
-    sys.path.insert(0, str(ROOT))
-
-from ea_gym.degradation import WearConfig  # noqa: E402
-from ea_gym.env import ENV_ID  # noqa: E402
-from ea_gym.files import write_json  # noqa: E402
-from ea_gym.models import get_model  # noqa: E402
-from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads, single_threaded_torch  # noqa: E402
+from ea_gym.degradation import WearConfig
+from ea_gym.env import ENV_ID
+from ea_gym.files import write_json
+from ea_gym.models import get_model
+from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads, single_threaded_torch
+from experiments.common import parse_with_smoke
 
 REGIMES = ("healthy", "alarm", "ppo")
 AGENT = ROOT / "agents" / "data" / "ppo_phm"
 CARRY_ON = 0  # the action table's first entry
 #: the shipped model's components, each worn by a fault of the given arrival window (s after reset)
 COMPONENTS = tuple(get_model("spring_mass_damper").safe_limits)
+
+#: the smoke run: every regime and kind of env on a few steps (N = 1 and 2, SyncVectorEnv included)
+SMOKE = {"sizes": [1, 2], "steps": 2, "warmup": 1, "alarm_warmup": 2, "sync_max": 2}
 
 Actor = Callable[[dict[str, np.ndarray], int], np.ndarray]
 
@@ -276,7 +274,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--repeats", type=int, default=1, help="measurements of each row, each in a fresh env: the median's row is shown")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", type=Path, default=None, help="also write the numbers as JSON")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     for name in ("steps", "repeats", "warmup", "alarm_warmup", "sync_max"):
         if getattr(args, name) < (1 if name in ("steps", "repeats") else 0):
             parser.error(f"--{name.replace('_', '-')} must be >= {1 if name in ('steps', 'repeats') else 0}, got {getattr(args, name)}")

@@ -17,7 +17,9 @@ What it does
        the classifiers the package loads with ``ea_gym.diagnosis.training.load_shipped_classifier``.
 
 How to run (from the repository root; about a minute on a laptop)
-    python experiments/train_isolation.py [--seed 0] [--out experiments/results/isolation] [--no-ship]
+    python experiments/build/train_isolation.py [--seed 0] [--out experiments/results/isolation] [--no-ship] [--smoke]
+
+``--smoke`` trains on a small database for a few epochs and ships nothing.
 
 The database options (``--intervals``, ``--loads``, ``--fault-free-runs``, ``--noise-levels``,
 ``--frame-ends``) and ``--epochs`` default to the package's ``DatabaseConfig`` and ``TrainingConfig``;
@@ -37,31 +39,31 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
+from tqdm import tqdm
 
-try:  # runnable as ``python experiments/train_isolation.py`` from a checkout without installing
-    import ea_gym  # noqa: F401
-except ImportError:  # pragma: no cover - depends on how the script is started
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's ea_gym and experiments.common, installed or not
 
-import torch  # noqa: E402
-from tqdm import tqdm  # noqa: E402
-
-from ea_gym.diagnosis.classifier import TrainingConfig  # noqa: E402
-from ea_gym.diagnosis.database import DatabaseConfig, FaultDatabase  # noqa: E402
-from ea_gym.diagnosis.features import N_PEAKS, VARIANTS  # noqa: E402
-from ea_gym.diagnosis.figures import percent, plot_accuracy_vs_magnitude, plot_confusion, plot_peaks  # noqa: E402
-from ea_gym.diagnosis.training import (  # noqa: E402
+from ea_gym.diagnosis.classifier import TrainingConfig
+from ea_gym.diagnosis.database import DatabaseConfig, FaultDatabase
+from ea_gym.diagnosis.features import N_PEAKS, VARIANTS
+from ea_gym.diagnosis.figures import percent, plot_accuracy_vs_magnitude, plot_confusion, plot_peaks
+from ea_gym.diagnosis.training import (
     MAGNITUDE_BINS,
     IsolationTraining,
     noise_key,
     shipped_classifier_path,
     train_isolation,
 )
-from ea_gym.files import write_json, write_text  # noqa: E402
-from ea_gym.models import spring_mass_damper  # noqa: E402
+from ea_gym.files import write_json, write_text
+from ea_gym.models import spring_mass_damper
+from experiments.common import parse_with_smoke
 
 MODEL_NAME = "spring_mass_damper"
 SPLITS = ("train", "validation", "test")
+#: the smoke run: a small database (2 loads, 4 intervals, 2 noise levels, 2 frames per run), 50 epochs, nothing shipped
+SMOKE = {"no_ship": True, "intervals": 4, "loads": 2, "fault_free_runs": 3, "noise_levels": [0.0, 0.05], "frame_ends": [30.0, 40.0], "epochs": 50}
 POPULATIONS = (
     ("accuracy_quarter", "quarter", "faults >= 1/4 of the way to a limit"),
     ("accuracy_quarter_with_none", "quarter_with_none", "the same + fault-free"),
@@ -73,7 +75,7 @@ def _parser() -> argparse.ArgumentParser:
     db, tr = DatabaseConfig(), TrainingConfig()
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--seed", type=int, default=0, help="seed of the whole run (default 0)")
-    parser.add_argument("--out", type=Path, default=Path("experiments/results/isolation"), help="results folder")
+    parser.add_argument("--out", type=Path, default=ROOT / "experiments" / "results" / "isolation", help="results folder")
     parser.add_argument("--no-ship", action="store_true", help="do not overwrite ea_gym/data/spring_mass_damper_*.safetensors")
     parser.add_argument("--intervals", type=int, default=db.intervals, help=f"intervals per safe range (default {db.intervals})")
     parser.add_argument("--loads", type=int, default=db.n_loads, help=f"random loads (default {db.n_loads})")
@@ -268,8 +270,8 @@ def markdown_report(result: dict[str, Any]) -> str:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
-    command = shlex.join(["python", "experiments/train_isolation.py", *(sys.argv[1:] if argv is None else argv)])
+    args = parse_with_smoke(_parser(), argv, SMOKE)
+    command = shlex.join(["python", "experiments/build/train_isolation.py", *(sys.argv[1:] if argv is None else argv)])
     config = dataclasses.replace(
         DatabaseConfig(),
         intervals=args.intervals,
@@ -295,7 +297,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         for variant, classifier in result.classifiers.items():
             path = classifier.save(shipped_classifier_path(MODEL_NAME, variant))
             try:
-                shipped.append(str(path.resolve().relative_to(Path(__file__).resolve().parents[1])))
+                shipped.append(str(path.resolve().relative_to(ROOT)))
             except ValueError:
                 shipped.append(str(path))
 

@@ -15,8 +15,9 @@ method is wrapped with a timer (about 0.3 us a call; cProfile's own cost per cal
 stages' glue, so it overstates them) and the table gives each side's median microseconds per step, the rest
 of the step (the environment's bookkeeping, observation, info and gymnasium's wrappers) as "other".
 
-Run: ``python experiments/bench_against.py [--ref HEAD~1] [--regime alarm] [--size 256] [--rounds 3]``, or
-``python experiments/bench_against.py --ref HEAD~1 --stages --steps 300 --warmup 30 --rounds 5``.
+Run from a checkout's root: ``python experiments/benchmarks/bench_against.py [--ref HEAD~1] [--regime alarm] [--size 256]
+[--rounds 3]``, or ``python experiments/benchmarks/bench_against.py --ref HEAD~1 --stages --steps 300 --warmup 30 --rounds 5``.
+``--smoke`` times this checkout against itself (no other commit checked out, whose kernels would compile) on a few steps.
 """
 
 from __future__ import annotations
@@ -28,10 +29,17 @@ import statistics
 import subprocess
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's experiments.common, installed or not
+
+from experiments.common import parse_with_smoke
+
+#: the smoke run's sizes: this checkout on both sides
+SMOKE = {"ref": None, "size": 2, "steps": 2, "warmup": 2, "rounds": 1}
 
 # runs in the checkout under test, through its own ea_gym's public interface
 _MEASURE = """
@@ -140,27 +148,22 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--rounds", type=int, default=3, help="measurements of each side, alternating")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--stages", action="store_true", help="time the single env (N = 1) stage by stage instead")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.stages and args.size != parser.get_default("size"):
         parser.error(f"--size: --stages times the single env (N = 1), got --size {args.size}")
     size = 1 if args.stages else args.size
-    with tempfile.TemporaryDirectory() as scratch:
-        other = Path(scratch) / "ref"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(other), args.ref], check=True)
-        try:
-            sides = {"this checkout": ROOT, args.ref: other}
-            runs: dict[str, list[dict]] = {name: [] for name in sides}
-            for round_ in range(args.rounds):
-                # the order alternates too (ABBA...): whichever side runs first in a round has been seen to run slower
-                for name, root in list(sides.items())[:: -1 if round_ % 2 else 1]:
-                    result = measure(root, args.regime, size, args.steps, args.warmup, args.seed, args.stages)
-                    runs[name].append(result)
-                    rate = f"round {round_ + 1}, {name}: {result['env_steps_per_s']:.0f} env-steps/s"
-                    if not args.stages:
-                        rate += f", {result['env_steps_per_cpu_s']:.0f} per CPU-s, alarm share {result['alarm_share']:.0%}"
-                    print(f"{rate}, load {result['load_1min']:.1f}", flush=True)
-        finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(other)], check=False)
+    with checkout(args.ref) as other:
+        sides = {"this checkout": ROOT, args.ref or "this checkout again": other}
+        runs: dict[str, list[dict]] = {name: [] for name in sides}
+        for round_ in range(args.rounds):
+            # the order alternates too (ABBA...): whichever side runs first in a round has been seen to run slower
+            for name, root in list(sides.items())[:: -1 if round_ % 2 else 1]:
+                result = measure(root, args.regime, size, args.steps, args.warmup, args.seed, args.stages)
+                runs[name].append(result)
+                rate = f"round {round_ + 1}, {name}: {result['env_steps_per_s']:.0f} env-steps/s"
+                if not args.stages:
+                    rate += f", {result['env_steps_per_cpu_s']:.0f} per CPU-s, alarm share {result['alarm_share']:.0%}"
+                print(f"{rate}, load {result['load_1min']:.1f}", flush=True)
     if args.stages:
         print_stages(runs)
     else:
@@ -172,6 +175,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"speed-up per CPU second: {median(this, 'env_steps_per_cpu_s') / median(ref, 'env_steps_per_cpu_s'):.2f}x; ", end="")
     print(f"wall: {median(this, 'env_steps_per_s') / median(ref, 'env_steps_per_s'):.2f}x")
     return 0
+
+
+@contextmanager
+def checkout(ref: str | None) -> Iterator[Path]:
+    """The root of ``ref`` checked out into a temporary git worktree, removed afterwards (None: this checkout)."""
+    if ref is None:
+        yield ROOT
+        return
+    with tempfile.TemporaryDirectory() as scratch:
+        other = Path(scratch) / "ref"
+        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "--quiet", str(other), ref], check=True)
+        try:
+            yield other
+        finally:
+            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(other)], check=False)
 
 
 def median(runs: list[dict], key: str) -> float:

@@ -12,22 +12,27 @@ What it measures
     direction while continued, so a run of corrective steps can carry a part through nominal toward its
     other limit).
 
-Usage
-    python experiments/from_scratch_diagnosis.py AGENT_DIR... [--rule] [--episodes N] [--out FILE.json]
+Usage (from the repository root)
+    python experiments/studies/from_scratch_diagnosis.py AGENT_DIR... [--rule] [--episodes N] [--out FILE.json] [--smoke]
 
     ``--rule`` adds RulThreshold (corrective, 5 s: the benchmark's tuned setting) for comparison.
+    ``--smoke``: the committed agent agents/data/ppo_phm and the rule on 2 episodes.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 from collections import Counter
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT))  # this checkout's ea_gym, agents and experiments.common, installed or not
 
 import ea_gym  # noqa: F401 - registers the environments
 from agents.benchmark.settings import evaluation_seeds
@@ -36,7 +41,10 @@ from agents.shaping import true_wear
 from agents.training import load_policy
 from ea_gym.env.events import ActionKind, CorrectiveStep, Failure, Replacement, parse_action, parse_event
 from ea_gym.threads import single_threaded_torch
+from experiments.common import parse_with_smoke
 
+#: the smoke run: the committed agent and the rule on two episodes, nothing written unless --out says where
+SMOKE = {"agents": [ROOT / "agents" / "data" / "ppo_phm"], "rule": True, "episodes": 2, "out": None}
 COUNTS = ("corrective_on_faulty", "corrective_on_other", "replaced_faulty", "replaced_other", "failed_faulty", "failed_other", "ignored_orders")
 ITEMS = ("corrective", "replacement", "failure", "lost_production")
 
@@ -106,13 +114,13 @@ def markdown(name: str, result: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("agents", nargs="*", type=Path, help="trained agent directories (ea-gym train's output)")
     parser.add_argument("--rule", action="store_true", help="also RulThreshold (corrective, 5 s)")
     parser.add_argument("--episodes", type=int, default=100, help="evaluation episodes (default 100)")
     parser.add_argument("--out", type=Path, help="write the breakdowns as JSON")
-    args = parser.parse_args()
+    args = parse_with_smoke(parser, argv, SMOKE)
     seeds = list(evaluation_seeds(0, args.episodes))
     policies: dict[str, Any] = {str(path): load_policy(path) for path in args.agents}
     if args.rule:

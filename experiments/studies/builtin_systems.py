@@ -23,9 +23,9 @@ Targets (issue 17): isolated in >= 95 % of the runs, never a belief >= 0.8 on a 
 alarm on fault-free runs. Writes results.json, table.md (README-ready) and isolation.png into
 experiments/results/builtin_systems/<estimator>/.
 
-    python experiments/builtin_systems.py                             # 20 runs of 100 s per parameter
-    python experiments/builtin_systems.py --estimator tracking
-    python experiments/builtin_systems.py --quick                     # 2 runs of 40 s, spring_mass_damper only
+    python experiments/studies/builtin_systems.py                     # 20 runs of 100 s per parameter
+    python experiments/studies/builtin_systems.py --estimator tracking
+    python experiments/studies/builtin_systems.py --smoke             # 2 runs of 40 s, spring_mass_damper only
 """
 
 from __future__ import annotations
@@ -39,7 +39,7 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym and experiments.common, installed or not
 
 from ea_gym.diagnosis.database import draw_loads
 from ea_gym.files import json_ready, save_figure, write_json, write_text
@@ -48,12 +48,15 @@ from ea_gym.phm import ESTIMATORS, ChainTiming, HealthStatus, PHMConfig, build_c
 from ea_gym.plant import run_model
 from ea_gym.pyplot import plt
 from ea_gym.sensors import add_sensor_noise
+from experiments.common import parse_with_smoke
 
 SYSTEMS = ("spring_mass_damper", "rlc_circuit", "dc_motor")
-RESULTS = Path(__file__).resolve().parent / "results" / "builtin_systems"
+RESULTS = Path(__file__).resolve().parents[1] / "results" / "builtin_systems"
 NOISE = 0.01  # fraction of each signal's RMS
 ONSET = 10.0  # s: the ramp's start
 TARGETS = {"isolated": 0.95, "wrong_belief": 0.8, "fault_free_alarms": 0}
+#: the smoke run: 2 runs of 40 s per parameter, spring_mass_damper unless --systems says otherwise
+SMOKE = {"runs": 2, "duration": 40.0, "systems": ["spring_mass_damper"]}
 
 
 def ramp(model: SystemModel, parameter: str | None, limit: float, duration: float) -> Any:
@@ -205,9 +208,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--runs", type=int, default=20, help="runs per parameter and fault-free runs per system (default 20)")
     parser.add_argument("--duration", type=float, default=100.0, help="seconds per run (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the first system (the next ones add 1)")
-    parser.add_argument("--quick", action="store_true", help="2 runs of 40 s per parameter, spring_mass_damper unless --systems says otherwise")
     parser.add_argument("--out", type=Path, default=None, help="output folder (default experiments/results/builtin_systems/<estimator>)")
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
     if args.runs < 1:
         parser.error(f"--runs must be >= 1, got {args.runs}")
     if not args.duration > 2 * ONSET:
@@ -217,11 +219,6 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = parse_args(argv)
-    raw = list(argv) if argv is not None else sys.argv[1:]
-    if args.quick:
-        args.runs, args.duration = 2, 40.0
-        if "--systems" not in raw:
-            args.systems = ["spring_mass_damper"]
     result = measure_all(args.estimator, args.systems, args.runs, args.duration, args.seed)
     out = args.out if args.out is not None else RESULTS / args.estimator
     write_json(out / "results.json", json_ready(result))

@@ -16,8 +16,8 @@ What it measures
     ``--sampling-steps`` steps at once with the trained policy exploring (``foreach_env_runner``), the
     steps of all of them over the driver's wall time of that call (``--rounds`` rounds, the median).
 
-Run (in the virtual environment with the rllib extra; README, RLlib and Ray):
-    nice /work/venv-rllib/bin/python experiments/rllib_ppo.py --out experiments/results/rllib
+Run from a checkout's root, in the virtual environment with the rllib extra (``bash scripts/test_ray.sh`` makes one):
+    nice .venv-rllib/bin/python experiments/integrations/rllib_ppo.py --out experiments/results/rllib [--smoke]
 Writes OUT/summary.json (every iteration's figures too); no checkpoints.
 """
 
@@ -31,11 +31,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-if __package__ in (None, ""):
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym, agents and experiments.common, installed or not
 
 from agents.rllib_training import EPISODE_COUNTS, VECTORIZE_MODES, RLlibRun, build_algorithm, train_iterations
 from ea_gym.files import write_json
+from experiments.common import parse_with_smoke
+
+#: the smoke run: one short iteration per mode on one env runner of two environments, one small sampling round
+SMOKE = {"timesteps": 200, "env_runners": 1, "envs_per_runner": 2, "sampling_steps": 50, "rounds": 1}
 
 
 def sampling_throughput(algorithm: Any, steps_per_runner: int) -> float:
@@ -48,7 +51,7 @@ def sampling_throughput(algorithm: Any, steps_per_runner: int) -> float:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("experiments/results/rllib"))
+    parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "results" / "rllib")
     parser.add_argument("--timesteps", type=int, default=20_000)
     parser.add_argument("--env-runners", type=int, default=2)
     parser.add_argument("--envs-per-runner", type=int, default=4)
@@ -56,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--sampling-steps", type=int, default=2000, help="steps per env runner in one timed sampling round")
     parser.add_argument("--rounds", type=int, default=3, help="timed sampling rounds")
     parser.add_argument("--modes", nargs="+", choices=VECTORIZE_MODES, default=list(VECTORIZE_MODES))
-    args = parser.parse_args(argv)
+    args = parse_with_smoke(parser, argv, SMOKE)
 
     import ray
 
@@ -86,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{mode}: " + ", ".join(f"{k} {v}" for k, v in runs[mode].items() if k != "iterations"), flush=True)
     ray.shutdown()
     write_json(args.out / "summary.json", {
-        "command": "nice python experiments/rllib_ppo.py " + " ".join(argv if argv is not None else sys.argv[1:]),
+        "command": "nice python experiments/integrations/rllib_ppo.py " + " ".join(argv if argv is not None else sys.argv[1:]),
         "settings": {"timesteps": args.timesteps, "env_runners": args.env_runners, "envs_per_runner": args.envs_per_runner,
                      "num_cpus": args.num_cpus, "obs_mode": "phm", "continue_after_failure": True,
                      "sampling_steps_per_runner": args.sampling_steps, "rounds": args.rounds},

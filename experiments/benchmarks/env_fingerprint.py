@@ -7,11 +7,13 @@ steps of the native vector env with 8 systems (seed 7): every observation, rewar
 Faults arrive late in so short episodes: the chain's estimation and prognosis stages are exercised
 by ``ea-gym phm`` and ``ea-gym reproduce``, whose outputs should be compared too.
 
-Run from a checkout's root: ``python experiments/env_fingerprint.py``.
+Run from a checkout's root: ``python experiments/benchmarks/env_fingerprint.py``; ``--smoke`` hashes one
+episode of 10 steps and 10 vector steps per obs_mode (a different hash, for checking that it runs).
 """
 
 from __future__ import annotations
 
+import argparse
 import hashlib
 import sys
 from pathlib import Path
@@ -20,13 +22,13 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-try:
-    import ea_gym  # noqa: F401
-except ImportError:  # run from a checkout without installing
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-    import ea_gym  # noqa: F401
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # this checkout's ea_gym and experiments.common, installed or not
 
 from ea_gym.env import ENV_ID
+from experiments.common import parse_with_smoke
+
+#: the smoke run: the same hashing on a few steps
+SMOKE = {"episodes": 1, "horizon": 10, "vector_steps": 10}
 
 
 def feed(digest: Any, value: Any) -> None:
@@ -48,13 +50,18 @@ def feed(digest: Any, value: Any) -> None:
         digest.update(repr(value).encode())
 
 
-def main() -> int:
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--episodes", type=int, default=3, help="single-env episodes per obs_mode (default 3)")
+    parser.add_argument("--horizon", type=int, default=120, help="steps per episode (default 120)")
+    parser.add_argument("--vector-steps", type=int, default=300, help="steps of the vector env per obs_mode (default 300)")
+    args = parse_with_smoke(parser, argv, SMOKE)
     digest = hashlib.sha256()
     for mode in ("phm", "sensors", "oracle"):
-        env = gym.make(ENV_ID, obs_mode=mode, horizon=120)
+        env = gym.make(ENV_ID, obs_mode=mode, horizon=args.horizon)
         rng = np.random.default_rng(0)
         n_actions = int(env.action_space.n)  # type: ignore[attr-defined]
-        for episode in range(3):
+        for episode in range(args.episodes):
             feed(digest, env.reset(seed=100 + episode))
             done = False
             while not done:
@@ -63,10 +70,10 @@ def main() -> int:
                 feed(digest, (observation, reward, terminated, truncated, info))
                 done = terminated or truncated
         print(mode, "single", digest.hexdigest()[:16], flush=True)
-        vector = gym.make_vec(ENV_ID, num_envs=8, vectorization_mode="vector_entry_point", obs_mode=mode, horizon=120)
+        vector = gym.make_vec(ENV_ID, num_envs=8, vectorization_mode="vector_entry_point", obs_mode=mode, horizon=args.horizon)
         feed(digest, vector.reset(seed=7))
         rng = np.random.default_rng(1)
-        for _ in range(300):
+        for _ in range(args.vector_steps):
             feed(digest, vector.step(np.where(rng.random(8) < 0.1, rng.integers(n_actions, size=8), 0)))
         print(mode, "vector", digest.hexdigest()[:16], flush=True)
     print("final", digest.hexdigest())
