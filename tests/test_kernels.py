@@ -8,7 +8,7 @@ from scipy.signal import savgol_filter
 from ea_gym._kernels.activity import interval_activities, trapezoid_activity, trapezoid_area
 from ea_gym._kernels.detection import detect
 from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, solve
-from ea_gym._kernels.monitor import chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
+from ea_gym._kernels.monitor import EnergyWindows, NominalLaws, Smoothing, chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
 from ea_gym._kernels.prognosis import drift_ends, drift_prognosis
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
@@ -196,7 +196,7 @@ def test_smooth_rows_equal_savgol_filter():
     sg = SavitzkyGolay(51, 3, H)
     inertia = np.array([[1.0, 0.0, 2.0]])  # channel 1 is an I element's flow
     smooth, slope = np.empty((M, nx + 1, T - skip - cut)), np.empty((M, 1, T - skip - cut))
-    smooth_rows(rows, skip, cut, sg.moments(), sg.lane_coefficients(0), sg.lane_coefficients(1), inertia, smooth, slope)
+    smooth_rows(rows, skip, cut, Smoothing(sg.moments(), sg.lane_coefficients(0), sg.lane_coefficients(1)), inertia, smooth, slope)
     exact = savgol_filter(rows[..., skip:], 51, 3, axis=-1, mode="interp")[..., cut:]
     exact_slope = savgol_filter(rows[:, 1, skip:], 51, 3, deriv=1, delta=H, axis=-1, mode="interp")[..., cut:]
     np.testing.assert_allclose(smooth, exact, rtol=0, atol=1e-11 * np.abs(rows).max())
@@ -213,7 +213,7 @@ def test_element_powers_equal_the_bond_value_products():
     inertia = np.array([[1.0, 2.0, 3.0]])  # element 2 is an I element measured on channel 1
     slope = rng.standard_normal((M, 1, L))
     power = np.empty((M, 3, L))
-    element_powers(smooth, slope, scale, Cy, Dy, constant, effort, flow, sign, inertia, power)
+    element_powers(smooth, slope, NominalLaws(scale, Cy, Dy, constant, effort, flow, sign, inertia), power)
     z = np.einsum("bs,msl->mbl", Cy, smooth[:, :nx] * scale[:, None]) + Dy[None, :, None] * smooth[:, None, nx] + constant[None, :, None]
     exact = z[:, effort] * sign[None, :, None] * z[:, flow]
     exact[:, 2] = 3.0 * smooth[:, 1] * slope[:, 0]
@@ -228,7 +228,8 @@ def test_chunk_statistics_equal_numpy_sums():
     raw = rng.standard_normal((n, nx, T - 1))
     components, sources = np.array([1, 2, 3]), np.array([0])
     inertia = np.array([[0.0, 2.0, 1.5]])
-    finite, ea, residual, gram, cross, noise = chunk_statistics(power, smooth, raw, H, n_sub, n_balance, components, sources, inertia)
+    windows = EnergyWindows(H, n_sub, n_balance, components, sources)
+    finite, ea, residual, gram, cross, noise = chunk_statistics(power, smooth, raw, windows, inertia)
     assert finite
     areas = 0.5 * (power[..., :-1] + power[..., 1:]) * H
     np.testing.assert_allclose(ea, _sub_sums(np.abs(power), n_sub), rtol=1e-13)
@@ -244,7 +245,7 @@ def test_chunk_statistics_equal_numpy_sums():
     np.testing.assert_allclose(noise[:, 0], ((raw - smooth[:n, :nx, 1:]) ** 2).sum(-1), rtol=1e-12)
     np.testing.assert_allclose(noise[:, 1], (raw**2).sum(-1), rtol=1e-12)
     power[0, 0, 3] = np.nan
-    assert not chunk_statistics(power, smooth, raw, H, n_sub, n_balance, components, sources, inertia)[0]
+    assert not chunk_statistics(power, smooth, raw, windows, inertia)[0]
 
 
 def _sub_sums(magnitude: np.ndarray, n_sub: int) -> np.ndarray:

@@ -10,7 +10,7 @@ import pytest
 from numpy.polynomial import chebyshev
 from scipy.stats import norm
 
-from ea_gym._kernels.tracking import track_filters
+from ea_gym._kernels.tracking import FilterBank, FilterSettings, FilterStates, TrackedSignals, track_filters
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.loads import Sine, SinesLoad
@@ -107,10 +107,11 @@ def step_reference(est: TrackingEstimator, signals: StepSignals) -> ParameterEst
         P[:, nx, nx] += gap * est.process_noise[:, 0] / est.h
         P[:, nx + 1, nx + 1] += gap * est.process_noise[:, 1] / est.h
     est.clock = t.copy()
+    bank = FilterBank(hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, hyp.nominal, est.process_noise, est.prior)
     track_filters(
-        hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, est.process_noise, c.state_noise, est.forget, est.h,
-        np.where(held, 0.0, est.h), 0, measured, signals.load, signals.load_rate, variance, est.z, est.P, est.log_likelihood,
-        (0.0,) * nx, (0.0,) * (hyp.coefficients.shape[3] - nx),
+        bank, FilterSettings(c.state_noise, est.forget, est.h, est.noise**2), np.where(held, 0.0, est.h), 0,
+        TrackedSignals(measured, signals.load, signals.load_rate, t), variance,
+        FilterStates(est.started, est.clock, est.z, est.P, est.log_likelihood), (0.0,) * nx, (0.0,) * (hyp.coefficients.shape[3] - nx),
     )
     return est.estimates(t)
 

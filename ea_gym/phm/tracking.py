@@ -47,7 +47,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from ea_gym._kernels.tracking import track
+from ea_gym._kernels.tracking import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs, track
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import discretize
 from ea_gym.diagnosis.database import classes_of
@@ -306,12 +306,13 @@ class TrackingEstimator:
         hyp, config = self.hypotheses, self.config
         estimates, evidence = np.empty((6, n, len(self.degradable))), np.empty((n, len(hyp.nominal)))
 
+        bank = FilterBank(hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, hyp.nominal, self.process_noise, self.prior)
+        settings = FilterSettings(config.state_noise, self.forget, self.h, self.noise**2)
+        step, filters = TrackedSignals(measured, load, load_rate, t), FilterStates(self.started, self.clock, self.z, self.P, self.log_likelihood)
+        outputs = TrackOutputs(estimates, evidence)
+
         def track_rows(start: int, stop: int) -> None:
-            track(
-                hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, hyp.nominal, self.process_noise, self.prior,
-                config.state_noise, self.forget, self.h, self.noise**2, start, stop, measured, load, load_rate, t,
-                self.started, self.clock, self.z, self.P, self.log_likelihood, estimates, evidence,
-            )
+            track(bank, settings, start, stop, step, filters, outputs)
 
         over_rows(track_rows, n)
         value, variance, drift, drift_variance, covariance, time = estimates
