@@ -8,7 +8,18 @@ from scipy.signal import savgol_filter
 from ea_gym._kernels.activity import interval_activities, trapezoid_activity, trapezoid_area
 from ea_gym._kernels.detection import detect
 from ea_gym._kernels.expm import PADE13, expm_batch, matmul, pade_polynomial, solve
-from ea_gym._kernels.monitor import EnergyWindows, NominalLaws, Smoothing, chunk_statistics, copy, element_powers, load_sources, padded_chunk, same, smooth_rows
+from ea_gym._kernels.monitor import (
+    EnergyWindows,
+    NominalLaws,
+    Smoothing,
+    chunk_statistics,
+    copy,
+    element_powers,
+    load_sources,
+    padded_chunk,
+    same,
+    smooth_rows,
+)
 from ea_gym._kernels.multisine import multisine_rotations, rotated_multisine
 from ea_gym._kernels.prognosis import drift_ends, drift_prognosis
 from ea_gym._kernels.propagation import propagate_states, simulate_hermite
