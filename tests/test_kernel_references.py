@@ -47,6 +47,8 @@ def assert_same(got: Any, want: Any, case: Case, where: str) -> None:
         for k, (a, b) in enumerate(zip(got, want, strict=True)):
             assert_same(a, b, case, f"{where}[{k}]")
         return
+    if isinstance(got, np.ndarray) and isinstance(want, np.ndarray):
+        assert got.dtype == want.dtype, f"{where}: dtype {got.dtype} != {want.dtype}"
     got, want = np.asarray(got), np.asarray(want)
     assert got.shape == want.shape, f"{where}: shape {got.shape} != {want.shape}"
     if case.rtol is None:
