@@ -11,11 +11,11 @@ from typing import Any
 import numpy as np
 
 from ea_gym._kernels.expm import PADE13
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
 from ea_gym._kernels.monitor import ChunkOutputs, ChunkSignals, EnergyWindows, NominalLaws, Smoothing
 from ea_gym._kernels.multisine import multisine_rotations
 from ea_gym._kernels.smoothing import LANES
 from ea_gym._kernels.summation import summation_scratch
-from ea_gym._kernels.tracking import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
 from ea_gym.numerics import TINY
 
@@ -414,7 +414,7 @@ def _(rng: np.random.Generator) -> Case:
                  np.empty((4, nx + 1, FILTER.half + T))))
 
 
-@case("monitor.monitor_chunk")
+@case("monitor.monitor_chunk_step")
 def _(rng: np.random.Generator) -> Case:
     n, nx, T = 20, 2, 31  # more systems than one block of LANES
     windows = EnergyWindows(H, 5, 2, np.array([1, 2]), np.array([0]))

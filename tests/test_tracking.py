@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 from scipy.stats import norm
 
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
 from ea_gym._kernels.reference import tracking as reference
-from ea_gym._kernels.tracking import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs, track_filters
+from ea_gym._kernels.tracking import track_filters
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.loads import Sine, SinesLoad

@@ -7,9 +7,8 @@ with its derivative, theta' = theta + h drift, drift' = drift; the measurement i
 1/theta on the momentum of the hypothesis's own I element). Every filter adds each innovation's
 log-density to its log-likelihood, decayed by ``forget`` per sample.
 
-Reference: ``ea_gym._kernels.reference.tracking``. The arguments travel in records (``FilterBank``,
-``FilterSettings``, ``TrackedSignals``, ``FilterStates``, ``TrackOutputs``), which numba takes as typed
-named tuples.
+Reference: ``ea_gym._kernels.reference.tracking``. The arguments travel in records
+(``ea_gym._kernels.filter_records``).
 """
 
 from __future__ import annotations
@@ -20,84 +19,13 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
 from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 LOG_2PI = math.log(2.0 * math.pi)
 #: Smallest measurement noise variance (the channel's unit squared).
 VARIANCE_FLOOR = 1e-30
-
-
-class FilterBank(NamedTuple):
-    """Each hypothesis's filter model, H hypotheses over nx states and K Chebyshev terms."""
-
-    #: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis.
-    coefficients: np.ndarray
-    #: (H,) how many of the coefficients are used.
-    terms: np.ndarray
-    #: (H,) the interpolants' ranges, where theta stays.
-    lo: np.ndarray
-    hi: np.ndarray
-    #: (H, nx) the measurement's gain at nominal.
-    gain: np.ndarray
-    #: (H,) the state read through 1 / theta (-1: none).
-    own: np.ndarray
-    #: (H,) theta at nominal, where a filter starts.
-    nominal: np.ndarray
-    #: (H, 2) process-noise variances per sample of theta and drift.
-    process_noise: np.ndarray
-    #: (H, 2) their variances at the start.
-    prior: np.ndarray
-
-
-class FilterSettings(NamedTuple):
-    """The scalars every filter shares."""
-
-    #: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
-    state_noise: float
-    #: factor on the log-likelihoods per sample.
-    forget: float
-    #: sample period (s).
-    h: float
-    #: the sensors' noise variance as a fraction of each signal's mean square.
-    noise_variance: float
-
-
-class TrackedSignals(NamedTuple):
-    """One step's signals of N systems, L + 1 samples each."""
-
-    #: (N, nx, L + 1) the measured signals.
-    measured: np.ndarray
-    #: (N, L + 1) the load and its rate.
-    load: np.ndarray
-    load_rate: np.ndarray
-    #: (N,) the time at the step's end (s).
-    t: np.ndarray
-
-
-class FilterStates(NamedTuple):
-    """The filters of N systems, H per system, updated in place."""
-
-    #: (N,) whose filters run (the others start at the next step).
-    started: np.ndarray
-    #: (N,) the time (s) the filters describe.
-    clock: np.ndarray
-    #: (N, H, nx + 2) the states [x, theta, drift].
-    z: np.ndarray
-    #: (N, H, nx + 2, nx + 2) their covariances.
-    P: np.ndarray
-    #: (N, H) the log-likelihoods.
-    log_likelihood: np.ndarray
-
-
-class TrackOutputs(NamedTuple):
-    """What a step reads off the filters, written for its systems."""
-
-    #: (6, N, D), D = H - 1: each degradable parameter's value, variance, drift, drift variance,
-    #: (value, drift) covariance and the time (s) they describe.
-    estimates: np.ndarray
-    #: (N, H) the log-likelihoods.
-    evidence: np.ndarray
 
 
 class BlockRows(NamedTuple):
@@ -209,7 +137,8 @@ def track(
     nx = signals.measured.shape[1]
     # the sizes as tuple lengths, which the compiled code sees as constants: its loops over them unroll
     states, inputs = (0.0,) * nx, (0.0,) * (bank.coefficients.shape[3] - nx)
-    track_step(bank, settings, start, stop, signals, filters, outputs, states, inputs)
+    # the records cross into compiled code as plain tuples (``track_step``)
+    track_step(tuple(bank), tuple(settings), start, stop, tuple(signals), tuple(filters), tuple(outputs), states, inputs)
 
 
 @numba.njit(cache=True)
@@ -266,10 +195,17 @@ def carry_filters(gap: float, lo: np.ndarray, hi: np.ndarray, q: np.ndarray, h: 
 
 @numba.njit(cache=True, nogil=True)
 def track_step(
-    bank: FilterBank, settings: FilterSettings, start: int, stop: int, signals: TrackedSignals, filters: FilterStates,
-    outputs: TrackOutputs, states: tuple[float, ...], inputs: tuple[float, ...],
+    bank: tuple, settings: tuple, start: int, stop: int, signals: tuple, filters: tuple, outputs: tuple, states: tuple[float, ...],
+    inputs: tuple[float, ...],
 ) -> None:
-    """``track``, nx = len(states) and the input's coefficients per sample len(inputs)."""
+    """``track``, nx = len(states) and the input's coefficients per sample len(inputs).
+
+    The records come as plain tuples of their fields (or as the records): numba types a plain tuple's
+    fields in compiled code and a named tuple's in Python, which cost 3 us a call here (2.7 us of a step's
+    ~20 us at N = 1); they are named again here, which costs nothing.
+    """
+    bank, settings, filters = FilterBank(*bank), FilterSettings(*settings), FilterStates(*filters)
+    signals, outputs = TrackedSignals(*signals), TrackOutputs(*outputs)
     measured, t, h = signals.measured, signals.t, settings.h
     started, clock, z, P, log_likelihood = filters
     nx, samples = measured.shape[1], measured.shape[2]

@@ -47,7 +47,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from ea_gym._kernels.tracking import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs, track
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
+from ea_gym._kernels.tracking import track
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import discretize
 from ea_gym.diagnosis.database import classes_of

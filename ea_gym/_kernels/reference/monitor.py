@@ -142,7 +142,7 @@ def padded_chunk(
     context[rows] = signals[rows][..., T - H - 1 : T - 1]
 
 
-def monitor_chunk(
+def monitor_chunk_step(
     start: int, stop: int, signals: ChunkSignals, context: np.ndarray, smoothing: Smoothing, laws: NominalLaws, windows: EnergyWindows,
     outputs: ChunkOutputs,
 ) -> bool:

@@ -10,7 +10,8 @@ from typing import TypeVar
 import numpy as np
 from numpy.polynomial import chebyshev
 
-from ea_gym._kernels.tracking import VARIANCE_FLOOR, FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
+from ea_gym._kernels.tracking import VARIANCE_FLOOR
 
 #: a float, or arrays of them elementwise
 Values = TypeVar("Values", float, np.ndarray)
