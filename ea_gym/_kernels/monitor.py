@@ -2,9 +2,8 @@
 context, the rows smoothed and differentiated, the elements' nominal-law powers, and the chunk's EA,
 energy-balance and noise sums.
 
-Reference: ``ea_gym._kernels.reference.monitor``. The arguments travel in records (``Smoothing``,
-``NominalLaws``, ``EnergyWindows``, ``ChunkSignals``, ``ChunkOutputs``), which numba takes as typed
-named tuples.
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.monitor``. The arguments
+travel in records (``Smoothing``, ``NominalLaws``, ``EnergyWindows``, ``ChunkSignals``, ``ChunkOutputs``).
 """
 
 from __future__ import annotations

@@ -7,8 +7,8 @@ with its derivative, theta' = theta + h drift, drift' = drift; the measurement i
 1/theta on the momentum of the hypothesis's own I element). Every filter adds each innovation's
 log-density to its log-likelihood, decayed by ``forget`` per sample.
 
-Reference: ``ea_gym._kernels.reference.tracking``. The arguments travel in records
-(``ea_gym._kernels.filter_records``).
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.tracking``. The arguments
+travel in records (``ea_gym._kernels.filter_records``; ``BlockRows``, ``layout``'s).
 """
 
 from __future__ import annotations

@@ -15,6 +15,17 @@ kernels take as tuple lengths (``states``, ``inputs``) likewise.
 **Exempt** (``EXEMPT``, with the reason): a compiled function that is numpy's arithmetic itself, an
 inner step inlined into one kernel and specified by that kernel's reference, or one whose inputs numpy
 cannot take.
+
+**Modules**, by the stage they serve:
+
+- plant: ``expm`` (the matrix exponential), ``propagation`` (the discretized recursion), ``rows`` (kept
+  discretizations), ``multisine`` (loads), ``wear``;
+- monitor: ``smoothing`` (Savitzky-Golay), ``monitor`` (a chunk's powers, EA and balances), ``activity``
+  (EA and EAI), ``history``;
+- chain: ``detection``, ``features``, ``network``, ``isolation``, ``tracking`` (the filter bank),
+  ``prognosis``;
+- environment: ``observation``, ``ledger``;
+- numpy's own sum: ``summation``.
 """
 
 from __future__ import annotations
