@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from ea_gym._kernels.expm import PADE13
-from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, HypothesisModels, TrackedSignals, TrackOutputs
 from ea_gym._kernels.monitor import ChunkOutputs, ChunkSignals, EnergyWindows, NominalLaws, Smoothing
 from ea_gym._kernels.multisine import multisine_rotations
 from ea_gym._kernels.smoothing import LANES
@@ -442,7 +442,8 @@ def filter_bank(rng: np.random.Generator) -> FilterBank:
     gain[1, 1] = 1.0 / nominal[1]
     process_noise = np.array([[0.0, 0.0], [1e-6, 1e-9], [1e-6, 1e-9]])
     prior = np.array([[0.0, 0.0], [1e-2, 1e-4], [1e-3, 1e-5]])
-    return FilterBank(coefficients, np.array([1, 4, 3]), 0.5 * nominal, 1.5 * nominal, gain, np.array([-1, 1, -1]), nominal, process_noise, prior)
+    hypotheses = HypothesisModels(coefficients, np.array([1, 4, 3]), 0.5 * nominal, 1.5 * nominal, gain, np.array([-1, 1, -1]), nominal)
+    return FilterBank(hypotheses, process_noise, prior)
 
 
 SETTINGS = FilterSettings(1e-3, 0.99, H, 1e-4)
@@ -459,7 +460,7 @@ def tracked_signals(rng: np.random.Generator, n: int, samples: int = 21) -> Trac
 def running_filters(rng: np.random.Generator, bank: FilterBank, n: int) -> FilterStates:
     z = np.zeros((n, 3, NX + 2))
     z[..., :NX] = rng.standard_normal((n, 3, NX))
-    z[..., NX] = bank.nominal * np.array([1.0, 1.03, 0.98])  # off nominal, so that every theta-slope matters
+    z[..., NX] = bank.hypotheses.nominal * np.array([1.0, 1.03, 0.98])  # off nominal, so that every theta-slope matters
     z[:, 1:, NX + 1] = 1e-3
     P = np.zeros((n, 3, NX + 2, NX + 2))
     P[..., np.arange(NX), np.arange(NX)] = 1e-4
@@ -509,7 +510,8 @@ def _(rng: np.random.Generator) -> Case:
 @case("tracking.start_filters")
 def _(rng: np.random.Generator) -> Case:
     bank = filter_bank(rng)
-    return Case((rng.standard_normal(NX), rng.uniform(1e-6, 1e-4, NX), bank.gain, bank.nominal, bank.prior, np.full((3, NX + 2), 9.0),
+    hypotheses = bank.hypotheses
+    return Case((rng.standard_normal(NX), rng.uniform(1e-6, 1e-4, NX), hypotheses.gain, hypotheses.nominal, bank.prior, np.full((3, NX + 2), 9.0),
                  np.full((3, NX + 2, NX + 2), 9.0), np.full(3, 9.0)))
 
 
@@ -518,7 +520,8 @@ def _(rng: np.random.Generator) -> Case:
     bank = filter_bank(rng)
     filters = running_filters(rng, bank, 1)
     filters.z[0, 2, NX + 1] = 1.0  # drifts past its upper limit: held there
-    return Case((3.0, bank.lo, bank.hi, bank.process_noise, H, filters.z[0], filters.P[0]), check=lambda got, args: args[5][2, NX] == args[2][2])
+    return Case((3.0, bank.hypotheses.lo, bank.hypotheses.hi, bank.process_noise, H, filters.z[0], filters.P[0]),
+                check=lambda got, args: args[5][2, NX] == args[2][2])
 
 
 # --- isolation -----------------------------------------------------------------------------------------

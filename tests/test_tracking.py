@@ -28,9 +28,7 @@ RATE = 100.0
 
 def bank_and_settings(est: TrackingEstimator) -> tuple[FilterBank, FilterSettings]:
     """The estimator's filter bank and settings as its ``update`` passes them to the kernel."""
-    hyp = est.hypotheses
-    bank = FilterBank(hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, hyp.nominal, est.process_noise, est.prior)
-    return bank, FilterSettings(est.config.state_noise, est.forget, est.h, est.noise**2)
+    return FilterBank(est.hypotheses, est.process_noise, est.prior), FilterSettings(est.config.state_noise, est.forget, est.h, est.noise**2)
 
 
 def reference_step(est: TrackingEstimator, signals: StepSignals) -> ParameterEstimates:
@@ -40,7 +38,7 @@ def reference_step(est: TrackingEstimator, signals: StepSignals) -> ParameterEst
     filters = FilterStates(est.started, est.clock, est.z, est.P, est.log_likelihood)
     bank, settings = bank_and_settings(est)
     nx = signals.measured.shape[1]
-    sizes = (0.0,) * nx, (0.0,) * (bank.coefficients.shape[3] - nx)  # unused by the reference, the kernels' loop bounds
+    sizes = (0.0,) * nx, (0.0,) * (bank.hypotheses.coefficients.shape[3] - nx)  # unused by the reference, the kernels' loop bounds
     reference.track_step(bank, settings, 0, n, TrackedSignals(signals.measured, signals.load, signals.load_rate, signals.t), filters, outputs, *sizes)
     value, variance, drift, drift_variance, covariance, time = outputs.estimates
     return ParameterEstimates(value=value, variance=variance, drift=drift, drift_variance=drift_variance, covariance=covariance,

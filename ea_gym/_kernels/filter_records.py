@@ -9,22 +9,29 @@ from typing import NamedTuple
 import numpy as np
 
 
-class FilterBank(NamedTuple):
-    """Each hypothesis's filter model, H hypotheses over nx states and K Chebyshev terms."""
+class HypothesisModels(NamedTuple):
+    """What a filter needs of each hypothesis (H = D + 1, "none" first), nx states, K Chebyshev terms.
 
-    #: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis.
+    coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``ea_gym.phm.tracking.transition``'s
+    [Phi | Gamma](theta), the first terms (H,) of them nonzero; lo, hi: (H,) their range (the parameter's
+    unit), where theta stays; gain: (H, nx) measurement gains at nominal; own: (H,) the state whose gain is
+    1 / theta (-1: none); nominal: (H,) theta at nominal, where a filter starts (the "none" slot's: its
+    unused parameter's).
+    """
+
     coefficients: np.ndarray
-    #: (H,) how many of the coefficients are used.
     terms: np.ndarray
-    #: (H,) the interpolants' ranges, where theta stays.
     lo: np.ndarray
     hi: np.ndarray
-    #: (H, nx) the measurement's gain at nominal.
     gain: np.ndarray
-    #: (H,) the state read through 1 / theta (-1: none).
     own: np.ndarray
-    #: (H,) theta at nominal, where a filter starts.
     nominal: np.ndarray
+
+
+class FilterBank(NamedTuple):
+    """Each hypothesis's filter model."""
+
+    hypotheses: HypothesisModels
     #: (H, 2) process-noise variances per sample of theta and drift.
     process_noise: np.ndarray
     #: (H, 2) their variances at the start.

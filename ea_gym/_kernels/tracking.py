@@ -19,7 +19,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, HypothesisModels, TrackedSignals, TrackOutputs
 from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
@@ -136,9 +136,10 @@ def track(
     """
     nx = signals.measured.shape[1]
     # the sizes as tuple lengths, which the compiled code sees as constants: its loops over them unroll
-    states, inputs = (0.0,) * nx, (0.0,) * (bank.coefficients.shape[3] - nx)
+    states, inputs = (0.0,) * nx, (0.0,) * (bank.hypotheses.coefficients.shape[3] - nx)
     # the records cross into compiled code as plain tuples (``track_step``)
-    track_step(tuple(bank), tuple(settings), start, stop, tuple(signals), tuple(filters), tuple(outputs), states, inputs)
+    plain_bank = (tuple(bank.hypotheses), bank.process_noise, bank.prior)
+    track_step(plain_bank, tuple(settings), start, stop, tuple(signals), tuple(filters), tuple(outputs), states, inputs)
 
 
 @numba.njit(cache=True)
@@ -204,7 +205,9 @@ def track_step(
     fields in compiled code and a named tuple's in Python, which cost 3 us a call here (2.7 us of a step's
     ~20 us at N = 1); they are named again here, which costs nothing.
     """
-    bank, settings, filters = FilterBank(*bank), FilterSettings(*settings), FilterStates(*filters)
+    hypotheses, process_noise, prior = bank
+    bank = FilterBank(HypothesisModels(*hypotheses), process_noise, prior)
+    settings, filters = FilterSettings(*settings), FilterStates(*filters)
     signals, outputs = TrackedSignals(*signals), TrackOutputs(*outputs)
     measured, t, h = signals.measured, signals.t, settings.h
     started, clock, z, P, log_likelihood = filters
@@ -221,10 +224,10 @@ def track_step(
         measurement_variance(measured[m], settings.noise_variance, squares, scratch, variance[s])
         held = False
         if not started[m]:
-            start_filters(measured[m, :, 0], variance[s], bank.gain, bank.nominal, bank.prior, z[m], P[m], log_likelihood[m])
+            start_filters(measured[m, :, 0], variance[s], bank.hypotheses.gain, bank.hypotheses.nominal, bank.prior, z[m], P[m], log_likelihood[m])
             started[m] = True
         elif t[m] - clock[m] > longest:
-            carry_filters(t[m] - clock[m], bank.lo, bank.hi, bank.process_noise, h, z[m], P[m])
+            carry_filters(t[m] - clock[m], bank.hypotheses.lo, bank.hypotheses.hi, bank.process_noise, h, z[m], P[m])
             held = True
         clock[m] = t[m]
         drift_time[s] = 0.0 if held else h
@@ -251,7 +254,8 @@ def track_filters(
     The S x H filters run LANES at a time (``filter_samples``); those whose parameter is fixed
     (``parameter_fixed``: the "none" hypothesis's) in blocks of their own, over their states alone.
     """
-    coefficients, terms, lo, hi, gain, own, _, q, _ = bank
+    coefficients, terms, lo, hi, gain, own, _ = bank.hypotheses
+    q = bank.process_noise
     measured, load, load_rate, _ = signals
     z, P, log_likelihood = filters.z, filters.P, filters.log_likelihood
     state_noise, forget, h = settings.state_noise, settings.forget, settings.h

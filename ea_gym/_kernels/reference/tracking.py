@@ -78,9 +78,10 @@ def filter_sample(
     its [Phi | Gamma] at its theta and dM its theta-slope; the innovations' log-density. The channels
     update in turn, each linearised where the previous left the state."""
     nx = len(y)
-    g = bank.gain[f].copy()
-    if bank.own[f] >= 0:
-        g[bank.own[f]] = 1.0 / z[nx]
+    hyp = bank.hypotheses
+    g = hyp.gain[f].copy()
+    if hyp.own[f] >= 0:
+        g[hyp.own[f]] = 1.0 / z[nx]
     F = np.zeros((nx + 2, nx + 2))
     F[:nx, :nx] = M[:, :nx]
     F[:nx, nx] = dM[:, :nx] @ z[:nx] + dM[:, nx:] @ w
@@ -92,8 +93,8 @@ def filter_sample(
     density = 0.0
     for i in range(nx):
         H = np.zeros(nx + 2)
-        H[i] = bank.gain[f, i]
-        if i == bank.own[f]:
+        H[i] = hyp.gain[f, i]
+        if i == hyp.own[f]:
             H[i], H[nx] = 1.0 / z[nx], -z[i] / z[nx] ** 2
         innovation = y[i] - H[i] * z[i]
         S = H @ P @ H + variance[i]
@@ -101,7 +102,7 @@ def filter_sample(
         density -= 0.5 * (np.log(S) + np.log(2.0 * np.pi) + innovation**2 / S)
         z += K * innovation
         P -= np.outer(K, K) * S
-    z[nx] = np.clip(z[nx], bank.lo[f], bank.hi[f])
+    z[nx] = np.clip(z[nx], hyp.lo[f], hyp.hi[f])
     return density
 
 
@@ -114,13 +115,14 @@ def track_filters(
     step's first theta (the anchor); theta' = theta + drift_time drift; each sample's log-density added to
     the log-likelihood decayed by ``forget``. ``states`` and ``inputs`` (the kernel's sizes) are unused."""
     nx = signals.measured.shape[1]
-    for s, f in np.ndindex(len(drift_time), len(bank.nominal)):
+    hyp = bank.hypotheses
+    for s, f in np.ndindex(len(drift_time), len(hyp.nominal)):
         m = offset + s
         z, P = filters.z[m, f], filters.P[m, f]
         anchor = z[nx]
-        rows, columns = bank.coefficients.shape[2], bank.coefficients.shape[3]
+        rows, columns = hyp.coefficients.shape[2], hyp.coefficients.shape[3]
         M0, dM = np.empty((rows, columns)), np.empty((rows, columns))
-        chebyshev_matrices(bank.coefficients[f], bank.terms[f], bank.lo[f], bank.hi[f], anchor, M0, dM, np.empty(0))
+        chebyshev_matrices(hyp.coefficients[f], hyp.terms[f], hyp.lo[f], hyp.hi[f], anchor, M0, dM, np.empty(0))
         for k in range(1, signals.measured.shape[2]):
             w = np.ones(columns - nx)  # the constant sources' column, where there is one, 1
             w[:4] = hermite_row(signals.load[m, k - 1], signals.load[m, k], signals.load_rate[m, k - 1], signals.load_rate[m, k], settings.h)
@@ -143,10 +145,11 @@ def track_step(
     for s, m in enumerate(range(start, stop)):
         measurement_variance(measured[m], settings.noise_variance, np.empty(0), (), variance[s])
         if not filters.started[m]:
-            start_filters(measured[m, :, 0], variance[s], bank.gain, bank.nominal, bank.prior, filters.z[m], filters.P[m], filters.log_likelihood[m])
+            hyp = bank.hypotheses
+            start_filters(measured[m, :, 0], variance[s], hyp.gain, hyp.nominal, bank.prior, filters.z[m], filters.P[m], filters.log_likelihood[m])
             filters.started[m] = True
         elif t[m] - filters.clock[m] > (samples - 1) * h * (1.0 + 1e-9):
-            carry_filters(t[m] - filters.clock[m], bank.lo, bank.hi, bank.process_noise, h, filters.z[m], filters.P[m])
+            carry_filters(t[m] - filters.clock[m], bank.hypotheses.lo, bank.hypotheses.hi, bank.process_noise, h, filters.z[m], filters.P[m])
             drift_time[s] = 0.0
         filters.clock[m] = t[m]
     track_filters(bank, settings, drift_time, start, signals, variance, filters, states, inputs)
