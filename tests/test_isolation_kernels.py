@@ -1,16 +1,11 @@
-"""The isolation's compiled steps equal the plain numpy form of their arithmetic to the bit: the balance's
-chi-square (``np.linalg.pinv``, ``np.sum``) and the fusion of the evidence."""
+"""The isolation's steps equal the plain numpy form of their arithmetic to the bit: the balance's chi-square
+(the reference's with ``np.linalg.pinv``), a row's chi-squares alone and in a batch, and the fusion of the
+evidence (``Isolation.fuse``); each kernel against its reference is ``test_kernel_references``."""
 
 import numpy as np
 
-from ea_gym._kernels.isolation import (
-    balance_log_ratios,
-    chi_squares,
-    history_sums,
-    network_average,
-    pseudo_inverse_factors,
-    suspect_hypotheses,
-)
+from ea_gym._kernels.isolation import chi_squares, pseudo_inverse_factors
+from ea_gym._kernels.reference import isolation as reference
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.models import spring_mass_damper
 from ea_gym.numerics import TINY
@@ -19,18 +14,8 @@ from ea_gym.phm.isolation import balance_chi_square
 
 
 def chi_square_by_definition(gram, cross, square, windows, columns):
-    """``balance_chi_square`` in plain numpy."""
-    C = gram.shape[-1]
-    explained = np.einsum("ni,nij,nj->n", cross, np.linalg.pinv(gram, rcond=1e-12, hermitian=True), cross)
-    variance = np.maximum(square - explained, TINY) / np.maximum(windows - C, 1)
-    single = cross**2 / np.maximum(np.diagonal(gram, axis1=-2, axis2=-1), TINY)
-    chi2 = np.empty((len(square), 1 + len(columns)))
-    chi2[:, 0] = explained
-    chi2[:, 1:] = explained[:, None] - np.where(columns >= 0, single[:, columns], explained[:, None])
-    with np.errstate(over="ignore"):  # a regression that explains everything: variance TINY, chi-squares inf
-        chi2 = np.maximum(chi2, 0.0) / variance[:, None]
-    chi2[:, 1:] = np.where(columns >= 0, chi2[:, 1:], chi2.min(1, keepdims=True))
-    return chi2
+    """``balance_chi_square``: the reference's chi-squares with numpy's pseudo-inverse."""
+    return reference.chi_squares(gram, cross, square, windows, np.linalg.pinv(gram, rcond=1e-12, hermitian=True), columns)
 
 
 def random_regressions(rng, n, components=3):
@@ -75,70 +60,11 @@ def test_chi_squares_explained_sum_is_einsums_for_any_number_of_components():
         assert alone.tobytes() == chi2.tobytes()
 
 
-def test_balance_log_ratios_equal_the_numpy_form_of_the_balance_evidence():
-    rng = np.random.default_rng(13)
-    n, span, windows_per_step, inflation = 50, 25, 3, 2.7
-    gram, cross, square = random_regressions(rng, 30)
-    square[:2] = np.nan  # NaN chi-squares propagate through the smallest
-    rows = rng.permutation(n)[:30]
-    steps = rng.integers(0, 60, n)
-    inverse = np.linalg.pinv(gram, rcond=1e-12, hermitian=True)
-    for columns in (np.array([0, 1, 2]), np.array([2, -1, 0, 1])):
-        windows = np.minimum(steps[rows], span) * windows_per_step
-        chi2 = chi_square_by_definition(gram, cross, square, windows, columns)
-        expected = np.zeros((n, 1 + len(columns)))
-        expected[rows] = -0.5 * (chi2 - np.minimum.reduce(chi2, axis=1, keepdims=True)) / inflation
-        got = balance_log_ratios(gram, cross, square, inverse, steps, rows, span, windows_per_step, columns, inflation, n)
-        assert np.isnan(got[rows[:2]]).all() and got.tobytes() == expected.tobytes()
-
-
 def test_pseudo_inverse_factors_multiply_to_numpys_pinv():
     gram, _, _ = random_regressions(np.random.default_rng(9), 50)
     left, right_t, tied = pseudo_inverse_factors(*np.linalg.eigh(gram), 1e-12)
     assert not tied
     assert np.matmul(left, right_t.transpose(0, 2, 1)).tobytes() == np.linalg.pinv(gram, rcond=1e-12, hermitian=True).tobytes()
-
-
-def test_history_sums_equal_numpys_sums_of_the_rows_windows():
-    rng = np.random.default_rng(10)
-    backing = rng.normal(size=(6, 3, 3, 40))
-    gram, cross, other = backing[..., 7:27], rng.normal(size=(6, 3, 40))[..., 13:33], rng.normal(size=(6, 4, 30))[..., 5:25]
-    rows = np.array([5, 0, 3])
-    sums = history_sums(gram, cross, other, rows, 10, False)
-    expected = gram[rows, ..., -10:].sum(-1), cross[rows, ..., -10:].sum(-1), other[rows].sum(-1)
-    for got, want in zip(sums, expected):
-        assert got.tobytes() == want.tobytes()
-    for got, want in zip(history_sums(gram, cross, other, rows, 10, True), expected):
-        by_system = np.zeros((6,) + want.shape[1:])
-        by_system[rows] = want
-        assert got.tobytes() == by_system.tobytes()
-
-
-def test_network_average_moves_the_counted_systems_as_numpy_does():
-    rng = np.random.default_rng(11)
-    average = rng.random((7, 4))
-    counted, predicted = np.array([6, 1, 2]), rng.random((3, 4))
-    expected_average = average.copy()
-    expected_average[counted] += 0.3 * (predicted - expected_average[counted])
-    expected = np.zeros((7, 4))
-    expected[:, 0] = 1.0  # "none" for the systems not counted
-    expected[counted] = predicted
-    assert network_average(predicted, counted, 7, 0.3, average).tobytes() == expected.tobytes()
-    assert average.tobytes() == expected_average.tobytes()
-    untouched = average.copy()
-    none = np.zeros((7, 4))
-    none[:, 0] = 1.0
-    assert network_average(np.empty((0, 4)), np.array([], dtype=np.int64), 7, 0.3, average).tobytes() == none.tobytes()
-    assert average.tobytes() == untouched.tobytes()
-
-
-def test_suspect_hypotheses_are_all_but_for_a_confident_systems_suspect():
-    confident = np.array([False, True, True, False, True])
-    isolated = np.array([2, 1, 3, 0, 2])
-    expected = np.where(confident[:, None], np.arange(3) == isolated[:, None] - 1, True)
-    got = suspect_hypotheses(confident, isolated, 3)
-    assert got.dtype == np.bool_ and np.array_equal(got, expected)
-    assert suspect_hypotheses(np.zeros(4, dtype=bool), np.zeros(4, dtype=int), 3).all()
 
 
 def fuse_by_definition(average, previous, floor, weights, threshold, alarm, log_evidence, estimated, balance):

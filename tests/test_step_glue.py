@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from ea_gym._kernels.ledger import close_step, outside_limits, take_orders
+from ea_gym._kernels.reference import ledger as reference
 from ea_gym.env.vector import BondGraphMaintenanceVectorEnv
 
 
@@ -39,14 +40,15 @@ def test_orders_are_the_actions_of_the_machines_up_and_refuse_any_out_of_range(d
     actions, down = rng.integers(0, 7, 30).astype(dtype), rng.integers(0, 3, 30)
     orders = np.empty_like(actions)
     assert take_orders(actions, 7, down, orders)
-    expected = np.where(down > 0, 0, actions)
+    expected = np.empty_like(actions)
+    assert reference.take_orders(actions, 7, down, expected)
     np.testing.assert_array_equal(orders, expected)
     assert orders.dtype == expected.dtype
     for bad in ([7], [-1] if np.dtype(dtype).kind == "i" else [255]):
         assert not take_orders(np.array([0, *bad], dtype=dtype), 7, np.zeros(2, dtype=int), np.empty(2, dtype=dtype))
 
 
-def test_failure_check_is_its_numpy_form():
+def test_failure_check_is_its_reference():
     rng = np.random.default_rng(1)
     n, columns = 40, np.array([3, 0, 2])
     low, high = np.array([0.2, -1.0, 0.5]), np.array([0.8, 1.0, 2.5])
@@ -54,37 +56,28 @@ def test_failure_check_is_its_numpy_form():
     theta[::7, 0] = np.nan  # NaN is inside the limits, as numpy's comparisons say
     theta[1, 3], theta[2, 3] = low[0], high[0]  # on a limit is inside
     for running in (rng.random(n) < 0.7, np.ones(n, dtype=bool), np.zeros(n, dtype=bool)):
-        values = theta[:, columns]
-        expected = running & ((values < low) | (values > high)).any(axis=1)
-        failed = np.empty(n, dtype=bool)
-        assert outside_limits(theta, columns, low, high, running, failed) == expected.any()
+        failed, expected = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
+        assert outside_limits(theta, columns, low, high, running, failed) == reference.outside_limits(theta, columns, low, high, running, expected)
         np.testing.assert_array_equal(failed, expected)
+        assert expected.any() == running.any()  # failures where running, none where not
 
 
 @pytest.mark.parametrize("n", [1, 9])
 @pytest.mark.parametrize("stop_at_failure", [True, False])
-def test_step_close_is_its_numpy_form_to_the_bit(n, stop_at_failure):
+def test_step_close_is_its_reference_to_the_bit(n, stop_at_failure):
     rng = np.random.default_rng(n)
     for _ in range(20):
         costs = rng.uniform(0.0, 1e3, (5, n)) * (rng.random((5, n)) < 0.5)  # the items, the total's row last
         costs[3] = 0.0  # lost production: counted by the close alone
-        down, steps = rng.integers(0, 4, n), rng.integers(0, 12, n)
-        since = rng.uniform(0.0, 50.0, n)
+        state = (costs, rng.integers(0, 4, n), rng.uniform(0.0, 50.0, n), rng.integers(0, 12, n))
         maintained, failed = rng.random(n) < 0.3, rng.random(n) < 0.3
-        expected = costs.copy()
-        expected[3] += np.where(down > 0, 7.3, 0.0)
-        expected[4] = expected[:4].sum(axis=0)
-        expected_down = np.maximum(down - 1, 0)
-        expected_since = np.where(maintained | failed, 0.0, since + 0.7)
-        expected_steps = steps + 1
-        expected_terminated = failed & stop_at_failure
-        expected_truncated = (expected_steps >= 10) & ~expected_terminated
-        terminated, truncated = np.empty(n, dtype=bool), np.empty(n, dtype=bool)
-        close_step(costs, 3, 7.3, down, since, steps, maintained, failed, 0.7, 10, stop_at_failure, terminated, truncated)
-        for got, want in [(costs, expected), (down, expected_down), (since, expected_since), (steps, expected_steps),
-                          (terminated, expected_terminated), (truncated, expected_truncated)]:
-            np.testing.assert_array_equal(got, want)
-            assert got.dtype == want.dtype
+        expected = tuple(x.copy() for x in state) + (np.empty(n, dtype=bool), np.empty(n, dtype=bool))
+        got = tuple(x.copy() for x in state) + (np.empty(n, dtype=bool), np.empty(n, dtype=bool))
+        for close, (costs, down, since, steps, terminated, truncated) in ((close_step, got), (reference.close_step, expected)):
+            close(costs, 3, 7.3, down, since, steps, maintained, failed, 0.7, 10, stop_at_failure, terminated, truncated)
+        for a, b in zip(got, expected, strict=True):
+            np.testing.assert_array_equal(a, b)
+            assert a.dtype == b.dtype
 
 
 def test_infos_and_health_statuses_of_earlier_steps_stay_as_they_were():

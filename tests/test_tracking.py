@@ -1,4 +1,4 @@
-"""The tracking estimator: its compiled filter bank against plain numpy, recovery of a constant parameter
+"""The tracking estimator: its compiled step against the kernels' numpy reference (``reference.tracking``), recovery of a constant parameter
 and of a ramp's slope from noise-free signals, and the linear-drift End of Life on hand-computed cases."""
 
 from __future__ import annotations
@@ -7,9 +7,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from numpy.polynomial import chebyshev
 from scipy.stats import norm
 
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, TrackedSignals, TrackOutputs
+from ea_gym._kernels.reference import tracking as reference
 from ea_gym._kernels.tracking import track_filters
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
@@ -25,94 +26,23 @@ from ea_gym.sensors import Sensors
 RATE = 100.0
 
 
-def tracking_step_reference(est: TrackingEstimator, measured, load, load_rate, variance, z, P, ll) -> None:
-    """The kernel's arithmetic in plain numpy: every system and hypothesis over samples 1..L, in place."""
-    hyp, h = est.hypotheses, est.h
-    nx = measured.shape[1]
-    for s, f in np.ndindex(z.shape[:2]):
-        anchor = z[s, f, nx]
-        width = hyp.hi[f] - hyp.lo[f]
-        x = np.clip((2 * anchor - hyp.lo[f] - hyp.hi[f]) / width, -1, 1) if width > 0 else 0.0
-        c = hyp.coefficients[f, : hyp.terms[f]]
-        M0 = chebyshev.chebval(x, c)
-        dM = chebyshev.chebval(x, chebyshev.chebder(c, axis=0)) * 2 / width if len(c) > 1 else np.zeros_like(M0)
-        for k in range(1, measured.shape[2]):
-            theta = z[s, f, nx]
-            M = M0 + dM * (theta - anchor)
-            u0, u1, d0, d1 = load[s, k - 1], load[s, k], load_rate[s, k - 1], load_rate[s, k]
-            slope = (u1 - u0) / h
-            w = np.array([u0, d0, 2 * (3 * slope - 2 * d0 - d1) / h, 6 * (d0 + d1 - 2 * slope) / h**2])
-            g = hyp.gain[f].copy()
-            if hyp.own[f] >= 0:
-                g[hyp.own[f]] = 1 / theta
-            F = np.zeros((nx + 2, nx + 2))
-            F[:nx, :nx] = M[:, :nx]
-            F[:nx, nx] = dM[:, :nx] @ z[s, f, :nx] + dM[:, nx:] @ w
-            F[nx, nx] = F[nx + 1, nx + 1] = 1
-            F[nx, nx + 1] = h
-            z[s, f, :nx] = M[:, :nx] @ z[s, f, :nx] + M[:, nx:] @ w
-            z[s, f, nx] += h * z[s, f, nx + 1]
-            Q = np.diag(np.concatenate([est.config.state_noise * variance[s] / g**2, est.process_noise[f]]))
-            P[s, f] = F @ P[s, f] @ F.T + Q
-            density = 0.0
-            for i in range(nx):  # channel by channel, each linearised where the previous left the state
-                H = np.zeros(nx + 2)
-                H[i] = hyp.gain[f, i]
-                if i == hyp.own[f]:
-                    H[i] = 1 / z[s, f, nx]
-                    H[nx] = -z[s, f, i] / z[s, f, nx] ** 2
-                nu = measured[s, i, k] - H[i] * z[s, f, i]
-                S = H @ P[s, f] @ H + variance[s, i]
-                K = P[s, f] @ H / S
-                density -= 0.5 * (np.log(S) + np.log(2 * np.pi) + nu**2 / S)
-                z[s, f] += K * nu
-                P[s, f] -= np.outer(K, K) * S
-            z[s, f, nx] = np.clip(z[s, f, nx], hyp.lo[f], hyp.hi[f])
-            ll[s, f] = est.forget * ll[s, f] + density
+def bank_and_settings(est: TrackingEstimator) -> tuple[FilterBank, FilterSettings]:
+    """The estimator's filter bank and settings as its ``update`` passes them to the kernel."""
+    return FilterBank(est.hypotheses, est.process_noise, est.prior), FilterSettings(est.config.state_noise, est.forget, est.h, est.noise**2)
 
 
-def measurement_variance(est: TrackingEstimator, measured: np.ndarray) -> np.ndarray:
-    """Each channel's noise variance (N, nx) in plain numpy: noise^2 x its clean RMS^2, from the noisy RMS over the step."""
-    mean_square = (measured**2).sum(axis=-1) / measured.shape[-1]
-    return np.maximum(est.noise**2 * mean_square / (1.0 + est.noise**2), 1e-30)
-
-
-def step_reference(est: TrackingEstimator, signals: StepSignals) -> ParameterEstimates:
-    """The estimator's step with everything around the filter bank in plain numpy: the measurement noise,
-    the fresh systems' filters started at nominal, those of a step longer than its signals carried over
-    the difference (theta += drift gap, P = J P J^T plus the random walks), then the filter bank."""
-    measured, t, hyp, c = signals.measured, signals.t, est.hypotheses, est.config
-    n, nx, samples = measured.shape
-    variance = measurement_variance(est, measured)
-    running = est.started.copy()
-    fresh = np.flatnonzero(~running)
-    gain = np.repeat(hyp.gain[None], len(fresh), axis=0)
-    est.z[fresh] = 0.0
-    est.z[fresh, :, :nx] = measured[fresh, None, :, 0] / gain
-    est.z[fresh, :, nx] = hyp.nominal
-    est.P[fresh] = 0.0
-    diagonal = np.arange(nx)
-    est.P[fresh[:, None, None], np.arange(len(hyp.nominal))[:, None], diagonal, diagonal] = variance[fresh, None, :] / gain**2
-    est.P[fresh[:, None], 1:, nx, nx] = (c.theta_prior * hyp.nominal[1:]) ** 2
-    est.P[fresh[:, None], 1:, nx + 1, nx + 1] = (c.drift_prior * hyp.nominal[1:]) ** 2
-    est.log_likelihood[fresh] = 0.0
-    est.started[:] = True
-    span = t - est.clock
-    held = running & (span > (samples - 1) * est.h * (1.0 + 1e-9))
-    for m in np.flatnonzero(held):
-        gap, z, P = span[m], est.z[m], est.P[m]
-        z[:, nx] = np.clip(z[:, nx] + gap * z[:, nx + 1], hyp.lo, hyp.hi)
-        P[:, nx, :] += gap * P[:, nx + 1, :]
-        P[:, :, nx] += gap * P[:, :, nx + 1]
-        P[:, nx, nx] += gap * est.process_noise[:, 0] / est.h
-        P[:, nx + 1, nx + 1] += gap * est.process_noise[:, 1] / est.h
-    est.clock = t.copy()
-    track_filters(
-        hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, est.process_noise, c.state_noise, est.forget, est.h,
-        np.where(held, 0.0, est.h), 0, measured, signals.load, signals.load_rate, variance, est.z, est.P, est.log_likelihood,
-        (0.0,) * nx, (0.0,) * (hyp.coefficients.shape[3] - nx),
-    )
-    return est.estimates(t)
+def reference_step(est: TrackingEstimator, signals: StepSignals) -> ParameterEstimates:
+    """The estimator's step by ``reference.track_step`` on its own arrays."""
+    n, D = len(signals.t), len(est.degradable)
+    outputs = TrackOutputs(np.empty((6, n, D)), np.empty((n, D + 1)))
+    filters = FilterStates(est.started, est.clock, est.z, est.P, est.log_likelihood)
+    bank, settings = bank_and_settings(est)
+    nx = signals.measured.shape[1]
+    sizes = (0.0,) * nx, (0.0,) * (bank.hypotheses.coefficients.shape[3] - nx)  # unused by the reference, the kernels' loop bounds
+    reference.track_step(bank, settings, 0, n, TrackedSignals(signals.measured, signals.load, signals.load_rate, signals.t), filters, outputs, *sizes)
+    value, variance, drift, drift_variance, covariance, time = outputs.estimates
+    return ParameterEstimates(value=value, variance=variance, drift=drift, drift_variance=drift_variance, covariance=covariance,
+                              log_evidence=outputs.evidence, estimated=np.ones((n, D), dtype=bool), time=time)
 
 
 def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, model=None):
@@ -135,6 +65,7 @@ def plant_steps(parameters, duration: float, noise: float = 0.0, seed: int = 0, 
 def test_kernel_matches_numpy_reference() -> None:
     model, steps = plant_steps(None, 3.0, noise=0.01)
     est = TrackingEstimator(model, RATE, 0.01, 2, config=TrackingConfig(state_noise=1e-3, evidence_memory=50.0))
+    numpy_form = TrackingEstimator(model, RATE, 0.01, 2, config=TrackingConfig(state_noise=1e-3, evidence_memory=50.0))
     both = [
         StepSignals(np.concatenate([s.measured, 1.01 * s.measured]), np.repeat(s.load, 2, 0), np.repeat(s.load_rate, 2, 0), np.repeat(s.t, 2))
         for s in steps
@@ -142,20 +73,21 @@ def test_kernel_matches_numpy_reference() -> None:
     suspects = np.ones((2, 3), dtype=bool)
     est.update(both[0], np.zeros(2, dtype=bool), suspects)
     est.z[:, 1:, 2] *= 1.03  # off nominal, so that every theta-slope matters
-    z, P, ll = est.z.copy(), est.P.copy(), est.log_likelihood.copy()
+    for name in ("started", "clock", "z", "P", "log_likelihood"):
+        getattr(numpy_form, name)[:] = getattr(est, name)
     for s in both[1:]:
-        variance = measurement_variance(est, s.measured)
-        tracking_step_reference(est, s.measured, s.load, s.load_rate, variance, z, P, ll)
+        reference_step(numpy_form, s)
         est.update(s, np.ones(2, dtype=bool), suspects)
-    np.testing.assert_allclose(est.z, z, rtol=1e-10, atol=1e-12)
-    np.testing.assert_allclose(est.P, P, rtol=1e-8, atol=1e-10 * np.abs(P).max())
-    np.testing.assert_allclose(est.log_likelihood, ll, rtol=1e-10)
+    np.testing.assert_allclose(est.z, numpy_form.z, rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(est.P, numpy_form.P, rtol=1e-8, atol=1e-10 * np.abs(numpy_form.P).max())
+    np.testing.assert_allclose(est.log_likelihood, numpy_form.log_likelihood, rtol=1e-10)
 
 
-def test_compiled_step_matches_numpy_around_the_filter_bank() -> None:
+def test_compiled_step_matches_numpy_around_the_filter_bank(monkeypatch: pytest.MonkeyPatch) -> None:
     """The compiled step (noise, starts, carries over long steps, the filters, the estimates) gives the
-    numpy form's bits, through a reset and steps that stand for more time than their signals, in one
-    system or both."""
+    bits of the reference's step around the compiled filter bank, through a reset and steps that stand
+    for more time than their signals, in one system or both."""
+    monkeypatch.setattr(reference, "track_filters", track_filters)
     model, steps = plant_steps(None, 8.0, noise=0.01)
     config = TrackingConfig(state_noise=1e-3)
     compiled, numpy_form = (TrackingEstimator(model, RATE, 0.01, 2, config=config) for _ in range(2))
@@ -170,7 +102,7 @@ def test_compiled_step_matches_numpy_around_the_filter_bank() -> None:
         if k == 4:
             compiled.reset(np.array([False, True]))
             numpy_form.reset(np.array([False, True]))
-        out, expected = compiled.update(signals, np.ones(2, dtype=bool), suspects), step_reference(numpy_form, signals)
+        out, expected = compiled.update(signals, np.ones(2, dtype=bool), suspects), reference_step(numpy_form, signals)
         for name in ("z", "P", "log_likelihood", "clock", "started"):
             np.testing.assert_array_equal(getattr(compiled, name), getattr(numpy_form, name), err_msg=name)
         for name in ("value", "variance", "drift", "drift_variance", "covariance", "log_evidence", "estimated", "time"):

@@ -5,6 +5,8 @@ Every EA in ea_gym is made of ``trapezoid_area``: the batch and streaming EA of 
 sub-window sums from ``trapezoid_area`` itself, in the loop that also sums the signed energy. The
 Energy Activity Index (eq 5) of components, their shares of their summed EA: ``component_shares``; of
 a step's sub-window EAs summed first: ``summed_shares``.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.activity``.
 """
 
 from __future__ import annotations

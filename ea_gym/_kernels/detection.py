@@ -2,6 +2,8 @@
 
 Its sums and maxima are numpy's own (``summation``, ``numpy_forms``), so the statistic is the numpy form's to the bit;
 the alarm's bookkeeping is integer and boolean.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.detection``.
 """
 
 from __future__ import annotations

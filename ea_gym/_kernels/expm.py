@@ -1,5 +1,7 @@
 """The matrix exponential of many small matrices: scaling and squaring with the [13/13] Pade
 approximant (Higham 2005), in compiled loops (``ea_gym.bondgraph.simulation.expm`` is its front).
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.expm``.
 """
 
 from __future__ import annotations

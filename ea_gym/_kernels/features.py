@@ -4,6 +4,8 @@ solve, the largest peaks of every spectrum and the clipped deviations.
 
 Every sum is numpy's (:func:`~ea_gym._kernels.summation.numpy_sum`), so that the features equal the
 plain numpy form of their definition to the bit.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.features``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
 """What the chain's history keeps of one step of the monitor (``ea_gym.phm.history.MonitorHistory.record``),
 in one compiled call: the step's sums, each as numpy forms it (``summation``), so to the bit, pushed with the
 step's EA and noise sums onto the histories' sliding windows.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.history``.
 """
 
 from __future__ import annotations

@@ -6,6 +6,8 @@ the fusion of the evidence around numpy's log and exp.
 Each step repeats the arithmetic of the numpy form it replaces (``np.sum``, ``np.linalg.pinv`` with
 ``hermitian=True``, ``np.einsum``, the chi-square's element-wise formula) in the same order, so that
 the numbers are the same to the bit.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.isolation``.
 """
 
 from __future__ import annotations

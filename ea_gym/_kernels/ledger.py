@@ -1,6 +1,8 @@
 """The maintenance step's bookkeeping over N systems (``ea_gym.env.core.MaintenanceCore``) in compiled
 loops: the orders, the failure check and the step's close, each in one pass where their numpy forms take a dozen small
 array operations, with the same comparisons and additions in the same order, so to the bit.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.ledger``.
 """
 
 from __future__ import annotations

@@ -1,15 +1,85 @@
 """The monitor's compiled steps (``ea_gym.diagnosis.monitor.Monitor``): a chunk padded with its smoothing
 context, the rows smoothed and differentiated, the elements' nominal-law powers, and the chunk's EA,
 energy-balance and noise sums.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.monitor``. The arguments
+travel in records (``Smoothing``, ``NominalLaws``, ``EnergyWindows``, ``ChunkSignals``, ``ChunkOutputs``).
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from ea_gym._kernels.activity import trapezoid_area
 from ea_gym._kernels.smoothing import LANES, filter_lanes
+
+
+class Smoothing(NamedTuple):
+    """``filter_lanes``' coefficients: the window's moments, the smoothing and the derivative filters."""
+
+    moments: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+    smoother: tuple[np.ndarray, np.ndarray, np.ndarray]
+    differentiator: tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
+class NominalLaws(NamedTuple):
+    """The monitored elements' nominal laws (``element_powers``), E elements over nx states."""
+
+    #: (nx,) the factor turning each measured signal into its energy variable.
+    scale: np.ndarray
+    #: (bonds, nx) and (bonds,): z = Cy x + Dy u, the bond values from the states and the load.
+    Cy: np.ndarray
+    Dy: np.ndarray
+    #: (bonds,) what the constant sources add to each bond value.
+    constant: np.ndarray
+    #: (E,) each element's effort and flow bond and the sign of its power.
+    effort: np.ndarray
+    flow: np.ndarray
+    sign: np.ndarray
+    #: (n_I, 3) (channel, element index, inertance) of each I element; only their laws differentiate.
+    inertia: np.ndarray
+
+
+class EnergyWindows(NamedTuple):
+    """How a chunk's samples are summed (``chunk_statistics``)."""
+
+    #: sample period (s).
+    h: float
+    #: samples per sub-window.
+    n_sub: int
+    #: sub-windows per balance window.
+    n_balance: int
+    #: element indices of the components and of the sources.
+    components: np.ndarray
+    sources: np.ndarray
+
+
+class ChunkSignals(NamedTuple):
+    """A chunk's signals of N systems, L + 1 samples each."""
+
+    #: (N, nx, L + 1) the measured and the reference model's signals.
+    measured: np.ndarray
+    reference: np.ndarray
+    #: (N, L + 1) the source's value.
+    load: np.ndarray
+
+
+class ChunkOutputs(NamedTuple):
+    """``monitor_chunk``'s outputs, written for the part's systems."""
+
+    #: (2N, E, n_sub) EA in J, N real then N reference rows.
+    ea: np.ndarray
+    #: (N, n_balances) the balance residual in J; (N, n_balances, C, C) and (N, n_balances, C) its gram and cross in J^2.
+    residual: np.ndarray
+    gram: np.ndarray
+    cross: np.ndarray
+    #: (N, 2, nx) the noise sums.
+    noise: np.ndarray
+    #: (N, nx, L + 1) the smoothed measured signals.
+    signals: np.ndarray
 
 
 @numba.njit(cache=True)
@@ -54,14 +124,12 @@ def load_sources(rows: np.ndarray, channel: int, skip: int) -> tuple[np.ndarray,
 
 @numba.njit(cache=True)
 def smooth_rows(
-    rows: np.ndarray, skip: int, cut: int, moments: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
-    smoother: tuple[np.ndarray, np.ndarray, np.ndarray], differentiator: tuple[np.ndarray, np.ndarray, np.ndarray],
-    inertia: np.ndarray, smooth: np.ndarray, slope: np.ndarray,
+    rows: np.ndarray, skip: int, cut: int, smoothing: Smoothing, inertia: np.ndarray, smooth: np.ndarray, slope: np.ndarray
 ) -> None:
     """The filters on rows (M, nx + 1, T): every signal filtered from sample ``skip`` on, outputs from ``cut`` on.
 
     Args:
-        moments, smoother, differentiator: ``filter_lanes`` coefficients of the smoothing and derivative filters.
+        smoothing: the smoothing and derivative filters.
         inertia: (channel, element index, inertance) of each I element; only their laws differentiate.
         smooth, slope: written: the smoothed signals (M, nx + 1, T - skip - cut) and the I elements'
             flow derivatives (M, n_I, T - skip - cut).
@@ -99,7 +167,7 @@ def smooth_rows(
             for t in range(length):
                 x[np.uint64(t), lane] = signal[np.uint64(t)]
             differentiate |= differentiated[c] >= 0
-        filter_lanes(x, cut, moments, smoother, differentiator, differentiate, filtered, derivative)
+        filter_lanes(x, cut, smoothing.moments, smoothing.smoother, smoothing.differentiator, differentiate, filtered, derivative)
         for b in range(lanes):
             m, c, lane = signal_row[g0 + b], signal_channel[g0 + b], np.uint64(b)
             out = smooth[m, c]
@@ -115,10 +183,7 @@ def smooth_rows(
 
 
 @numba.njit(cache=True)
-def element_powers(
-    smooth: np.ndarray, slope: np.ndarray, scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray, constant: np.ndarray,
-    effort: np.ndarray, flow: np.ndarray, sign: np.ndarray, inertia: np.ndarray, power: np.ndarray,
-) -> None:
+def element_powers(smooth: np.ndarray, slope: np.ndarray, laws: NominalLaws, power: np.ndarray) -> None:
     """Nominal-law power (M, E, L) of every monitored element, written to ``power``, in W.
 
     An I element's is I0 f df/dt from its own flow and derivative ``slope`` (M, n_I, L); the others'
@@ -126,6 +191,7 @@ def element_powers(
     ``scale`` x the smoothed signals (M, nx + 1, L), u their last channel, the load), plus ``constant``, what the
     constant sources add to each bond value.
     """
+    scale, Cy, Dy, constant, effort, flow, sign, inertia = laws
     M, channels, L = smooth.shape
     nx = channels - 1
     own = np.zeros(len(effort), dtype=np.bool_)
@@ -158,23 +224,22 @@ def element_powers(
 
 @numba.njit(cache=True)
 def chunk_statistics(
-    power: np.ndarray, smooth: np.ndarray, raw: np.ndarray, h: float, n_sub: int, n_balance: int,
-    components: np.ndarray, sources: np.ndarray, inertia: np.ndarray,
+    power: np.ndarray, smooth: np.ndarray, raw: np.ndarray, windows: EnergyWindows, inertia: np.ndarray
 ) -> tuple[bool, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """``ea_gym.diagnosis.monitor.Monitor.update``'s per-chunk outputs from the powers and smoothed signals of N real then N reference rows.
 
     Args:
         power: element powers (2N, E, L + 1) in W; smooth: smoothed signals (2N, nx + 1, L + 1).
         raw: the measured signals after the chunk's first sample, (N, nx, L).
-        h: sample period (s); n_sub: samples per sub-window; n_balance: sub-windows per balance window.
-        components, sources: element indices; inertia: (channel, element index, inertance) of each I element.
+        windows: the sums' windows; inertia: (channel, element index, inertance) of each I element.
 
     Returns:
         finite (whether every power is finite), EA (2N, E, n_sub) in J, balance residual (N, n_balances)
         in J, gram (N, n_balances, C, C) and cross (N, n_balances, C) in J^2, noise sums (N, 2, nx).
     """
-    finite, ea, energy = sub_window_energies(power, smooth, h, n_sub, inertia)
-    residual, gram, cross = balance_statistics(energy, energy_balances(energy, components, sources), components, n_balance)
+    finite, ea, energy = sub_window_energies(power, smooth, windows.h, windows.n_sub, inertia)
+    balance = energy_balances(energy, windows.components, windows.sources)
+    residual, gram, cross = balance_statistics(energy, balance, windows.components, windows.n_balance)
     return finite, ea, residual, gram, cross, noise_sums(raw, smooth)
 
 
@@ -303,14 +368,9 @@ def padded_chunk(
             copy(x, T - H - 1, previous, 0)
 
 
-@numba.njit(cache=True, nogil=True)
 def monitor_chunk(
-    start: int, stop: int, measured: np.ndarray, reference: np.ndarray, load: np.ndarray, context: np.ndarray,
-    moments: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], smoother: tuple[np.ndarray, np.ndarray, np.ndarray],
-    differentiator: tuple[np.ndarray, np.ndarray, np.ndarray], scale: np.ndarray, Cy: np.ndarray, Dy: np.ndarray, constant: np.ndarray,
-    effort: np.ndarray, flow: np.ndarray, sign: np.ndarray, inertia: np.ndarray, h: float, n_sub: int, n_balance: int,
-    components: np.ndarray, sources: np.ndarray,
-    ea: np.ndarray, residual: np.ndarray, gram: np.ndarray, cross: np.ndarray, noise: np.ndarray, signals: np.ndarray,
+    start: int, stop: int, signals: ChunkSignals, context: np.ndarray, smoothing: Smoothing, laws: NominalLaws, windows: EnergyWindows,
+    outputs: ChunkOutputs,
 ) -> bool:
     """``ea_gym.diagnosis.monitor.Monitor.update`` for systems [start, stop) of N: their real and reference
     rows padded with their context (``padded_chunk``), smoothed (``smooth_rows``), their elements'
@@ -318,41 +378,52 @@ def monitor_chunk(
     do not depend on the others', so parts of the systems run on several threads (GIL released).
 
     Args:
-        measured, reference: the chunk's signals (N, nx, L + 1); load: (N, L + 1); context: as in ``padded_chunk``.
-        moments, smoother, differentiator, inertia: as in ``smooth_rows``; scale, Cy, Dy, constant, effort,
-            flow, sign: as in ``element_powers``; h, n_sub, n_balance, components, sources: as in ``chunk_statistics``.
-        ea: written for the part's systems: EA (2N, E, n_sub), N real then N reference rows; residual, gram,
-            cross, noise: ``chunk_statistics``' (N, ...); signals: the smoothed measured signals (N, nx, L + 1).
+        signals: the chunk's signals; context: as in ``padded_chunk``.
+        outputs: written for the part's systems.
 
     Returns:
         whether every power of the part is finite.
     """
+    # the records cross into compiled code as plain tuples (``monitor_chunk_step``)
+    return monitor_chunk_step(start, stop, tuple(signals), context, tuple(smoothing), tuple(laws), tuple(windows), tuple(outputs))
+
+
+@numba.njit(cache=True, nogil=True)
+def monitor_chunk_step(
+    start: int, stop: int, signals: tuple, context: np.ndarray, smoothing: tuple, laws: tuple, windows: tuple, outputs: tuple
+) -> bool:
+    """``monitor_chunk``, compiled. The records come as plain tuples of their fields (or as the records):
+    numba types a plain tuple's fields in compiled code and a named tuple's in Python, which cost 3 us a
+    call here (of ~12 us at N = 1); they are named again here, which costs nothing."""
+    smoothing, laws, windows, outputs = Smoothing(*smoothing), NominalLaws(*laws), EnergyWindows(*windows), ChunkOutputs(*outputs)
+    measured, reference, load = signals
     n, nx, T = measured.shape
     H = context.shape[2]
+    inertia = laws.inertia
     # blocks of LANES systems: their real and reference rows fill the filter's lanes twice and their
     # loads once, and a block's working arrays stay in the core's cache
     block = min(stop - start, LANES)
     padded = np.empty((2 * block, nx + 1, H + T))
     smooth = np.empty((2 * block, nx + 1, T))
     slope = np.empty((2 * block, len(inertia), T))
-    power = np.empty((2 * block, len(effort), T))
+    power = np.empty((2 * block, len(laws.effort), T))
     finite = True
     for first in range(start, stop, block):
         last = min(first + block, stop)
         k = last - first
         rows = slice(0, 2 * k)
         padded_chunk(measured, reference, load, context, first, last, padded[rows])
-        smooth_rows(padded[rows], 0, H, moments, smoother, differentiator, inertia, smooth[rows], slope[rows])
-        element_powers(smooth[rows], slope[rows], scale, Cy, Dy, constant, effort, flow, sign, inertia, power[rows])
+        smooth_rows(padded[rows], 0, H, smoothing, inertia, smooth[rows], slope[rows])
+        element_powers(smooth[rows], slope[rows], laws, power[rows])
         finite_block, block_ea, block_residual, block_gram, block_cross, block_noise = chunk_statistics(
-            power[rows], smooth[rows], measured[first:last, :, 1:], h, n_sub, n_balance, components, sources, inertia
+            power[rows], smooth[rows], measured[first:last, :, 1:], windows, inertia
         )
         finite &= finite_block
-        ea[first:last] = block_ea[:k]
-        ea[n + first : n + last] = block_ea[k:]
-        residual[first:last] = block_residual
-        gram[first:last] = block_gram
-        cross[first:last] = block_cross
-        noise[first:last] = block_noise
-        signals[first:last] = smooth[:k, :nx]
+        outputs.ea[first:last] = block_ea[:k]
+        outputs.ea[n + first : n + last] = block_ea[k:]
+        outputs.residual[first:last] = block_residual
+        outputs.gram[first:last] = block_gram
+        outputs.cross[first:last] = block_cross
+        outputs.noise[first:last] = block_noise
+        outputs.signals[first:last] = smooth[:k, :nx]
     return finite

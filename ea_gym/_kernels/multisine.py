@@ -1,5 +1,7 @@
 """Multisine loads on uniform time grids, many systems at once: sum_i sin(2 pi f_i t + phi_i) and its
 time derivative by rotating each term from one sample to the next (``ea_gym.loads`` holds the loads).
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.multisine``.
 """
 
 from __future__ import annotations

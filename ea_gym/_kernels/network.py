@@ -5,6 +5,8 @@ then the inputs in turn), so a single environment's row and the same row among 2
 the same bits. A BLAS matrix product does not promise that: it picks its kernel, and with it the order
 of the sums, by the batch's shape (torch's ``linear`` gives different last bits for a row alone and in a
 batch).
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.network``.
 """
 
 from __future__ import annotations

@@ -3,6 +3,9 @@ RMS, in one compiled loop (``ea_gym.sensors.SystemNoise``).
 
 numba's ziggurat is numpy's, so the numbers are those ``Generator.standard_normal(out=row)`` gives; the
 generators are passed as the addresses of their state and functions, not unboxed at every call.
+
+No numpy reference takes generators by address (``ea_gym._kernels.reference.EXEMPT``): its numpy form
+is ``ea_gym.sensors.add_sensor_noise``, which the tests hold it to.
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
 """The observation of N systems (``ea_gym.env.observations.Observer.observe``) in one compiled loop: the
 arithmetic of its numpy form, element by element, so to the bit (``np.clip``: NaN kept, the bound where
 the value is not strictly inside), cast to float32 as ``astype`` casts.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.observation``.
 """
 
 from __future__ import annotations

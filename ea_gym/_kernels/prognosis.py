@@ -3,6 +3,8 @@
 The arithmetic is that function's numpy expressions, operation for operation and in their order (its
 ``where``, ``minimum`` and ``maximum`` as the conditionals numpy evaluates), so each result is the
 same to the bit: a step's handful of systems costs one call instead of some thirty array operations.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.prognosis``.
 """
 
 from __future__ import annotations

@@ -1,6 +1,8 @@
 """The linear recursion x[k+1] = Phi x[k] + Gamma w[k] of an exactly discretized model, many systems
 at once: with given input coefficients (``propagate_states``), and with the cubic Hermite input's
 coefficients made on the fly and constant matrices per system (``simulate_hermite``).
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.propagation``.
 """
 
 from __future__ import annotations

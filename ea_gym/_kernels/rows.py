@@ -1,5 +1,7 @@
 """The parameter rows of a batch kept from one simulation to the next (``ea_gym.bondgraph.simulation.RowDiscretizations``):
 which rows changed, and the kept rows and their discretizations replaced by the new ones.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.rows``.
 """
 
 from __future__ import annotations

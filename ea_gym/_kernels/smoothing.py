@@ -1,6 +1,8 @@
 """Savitzky-Golay filter kernels: the filter row by row (``filter_rows``) and on many signals side by
 side from running polynomial moments (``filter_lanes``); ``ea_gym.diagnosis.smoothing.SavitzkyGolay``
 makes their coefficients and says why they are exact.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.smoothing``.
 """
 
 from __future__ import annotations

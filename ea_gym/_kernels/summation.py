@@ -1,5 +1,7 @@
 """numpy's float64 sum, compiled: the kernels that must give the same numbers as a numpy form of their
 arithmetic add as ``np.sum`` does along a contiguous axis (pairwise, eight accumulators), not in order.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.summation``.
 """
 
 from __future__ import annotations

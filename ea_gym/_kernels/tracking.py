@@ -5,23 +5,54 @@ unit/s)]. Between samples x follows the plant's own exact discretization x' = Ph
 (w: the input's cubic Hermite coefficients over the interval), read off a Chebyshev interpolant in theta
 with its derivative, theta' = theta + h drift, drift' = drift; the measurement is y = g(theta) x (gain
 1/theta on the momentum of the hypothesis's own I element). Every filter adds each innovation's
-log-density to its log-likelihood, decayed by ``forget`` per sample. ``tracking_step_reference`` in
-the tests is the same arithmetic in plain numpy.
+log-density to its log-likelihood, decayed by ``forget`` per sample.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.tracking``. The arguments
+travel in records (``ea_gym._kernels.filter_records``; ``BlockRows``, ``layout``'s).
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, HypothesisModels, TrackedSignals, TrackOutputs
 from ea_gym._kernels.numpy_forms import numpy_maximum, numpy_minimum
 from ea_gym._kernels.summation import numpy_sum, summation_scratch
 
 LOG_2PI = math.log(2.0 * math.pi)
 #: Smallest measurement noise variance (the channel's unit squared).
 VARIANCE_FLOOR = 1e-30
+
+
+class BlockRows(NamedTuple):
+    """Where each quantity's rows start in a block of filters (``layout``), and the rows in all."""
+
+    state: int  # z (n)
+    covariance: int  # P (n x n)
+    product: int  # T = J P (n x n)
+    transition_anchor: int  # M0: [Phi | Gamma] at the anchor (nx x (nx + nw))
+    transition_slope: int  # dM: its theta-slope (nx x (nx + nw))
+    transition: int  # M = M0 + dM (theta - anchor) (nx x (nx + nw))
+    theta_column: int  # F0: the Jacobian's theta column (nx)
+    predicted: int  # F1: the predicted states (nx)
+    inputs: int  # W: the input's coefficients (nw)
+    measured: int  # Y (nx)
+    gain: int  # g at nominal (nx)
+    noise: int  # R: the measurement noise variances (nx)
+    process_noise: int  # Q (n)
+    drift_time: int  # ht
+    anchor: int  # theta where M0 and dM were read
+    lo: int
+    hi: int
+    own: int
+    innovation_variance: int  # each channel's (nx)
+    innovation: int  # each channel's, normalised (nx)
+    covariance_column: int  # P h (n)
+    rows: int
 
 
 @numba.njit(cache=True)
@@ -95,43 +126,20 @@ def parameter_fixed(terms: int, q: np.ndarray, own: int, lo: float, hi: float, z
 
 
 def track(
-    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, nominal: np.ndarray,
-    q: np.ndarray, prior: np.ndarray, state_noise: float, forget: float, h: float, noise_variance: float,
-    start: int, stop: int, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, t: np.ndarray,
-    started: np.ndarray, clock: np.ndarray, z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
-    estimates: np.ndarray, evidence: np.ndarray,
+    bank: FilterBank, settings: FilterSettings, start: int, stop: int, signals: TrackedSignals, filters: FilterStates, outputs: TrackOutputs
 ) -> None:
     """One step of systems [start, stop) of N (in place): each system's measurement noise
     (``measurement_variance``), its filters started (``start_filters``) or carried over a step longer than its
     signals (``carry_filters``), every hypothesis's filter over samples 1..L (``track_filters``), and the
     estimates read off them. A system's results do not depend on the others', so parts of the systems run on
     several threads (GIL released).
-
-    Args:
-        coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma] per hypothesis;
-            terms (H,): how many are used.
-        lo, hi: (H,) the interpolants' ranges; gain (H, nx), own (H,): the measurement of ``filter_samples``;
-            nominal: (H,) theta at nominal, where a filter starts.
-        q: (H, 2) process-noise variances per sample of theta and drift; prior: (H, 2) their variances at the start.
-        state_noise: each state's process-noise variance per sample, as a multiple of its measurement's variance / g^2.
-        forget: factor on the log-likelihoods per sample.
-        h: sample period (s).
-        noise_variance: the sensors' noise variance as a fraction of each signal's mean square.
-        measured: (N, nx, L + 1); load, load_rate: (N, L + 1); t: (N,) the time at the step's end (s).
-        started: (N,) whose filters run (the others start at this step); clock: (N,) the time (s) the filters
-            describe; both updated.
-        z: (N, H, nx + 2); P: (N, H, nx + 2, nx + 2); log_likelihood: (N, H).
-        estimates: (6, N, D) out, D = H - 1: each degradable parameter's value, variance, drift, drift
-            variance, (value, drift) covariance and the time (s) they describe; evidence: (N, H) out, the
-            log-likelihoods.
     """
-    nx = measured.shape[1]
+    nx = signals.measured.shape[1]
     # the sizes as tuple lengths, which the compiled code sees as constants: its loops over them unroll
-    states, inputs = (0.0,) * nx, (0.0,) * (coefficients.shape[3] - nx)
-    track_step(
-        coefficients, terms, lo, hi, gain, own, nominal, q, prior, state_noise, forget, h, noise_variance, start, stop,
-        measured, load, load_rate, t, started, clock, z, P, log_likelihood, estimates, evidence, states, inputs,
-    )
+    states, inputs = (0.0,) * nx, (0.0,) * (bank.hypotheses.coefficients.shape[3] - nx)
+    # the records cross into compiled code as plain tuples (``track_step``)
+    plain_bank = (tuple(bank.hypotheses), bank.process_noise, bank.prior)
+    track_step(plain_bank, tuple(settings), start, stop, tuple(signals), tuple(filters), tuple(outputs), states, inputs)
 
 
 @numba.njit(cache=True)
@@ -188,13 +196,21 @@ def carry_filters(gap: float, lo: np.ndarray, hi: np.ndarray, q: np.ndarray, h: 
 
 @numba.njit(cache=True, nogil=True)
 def track_step(
-    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, nominal: np.ndarray,
-    q: np.ndarray, prior: np.ndarray, state_noise: float, forget: float, h: float, noise_variance: float,
-    start: int, stop: int, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, t: np.ndarray,
-    started: np.ndarray, clock: np.ndarray, z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray,
-    estimates: np.ndarray, evidence: np.ndarray, states: tuple[float, ...], inputs: tuple[float, ...],
+    bank: tuple, settings: tuple, start: int, stop: int, signals: tuple, filters: tuple, outputs: tuple, states: tuple[float, ...],
+    inputs: tuple[float, ...],
 ) -> None:
-    """``track``, nx = len(states) and the input's coefficients per sample len(inputs)."""
+    """``track``, nx = len(states) and the input's coefficients per sample len(inputs).
+
+    The records come as plain tuples of their fields (or as the records): numba types a plain tuple's
+    fields in compiled code and a named tuple's in Python, which cost 3 us a call here (2.7 us of a step's
+    ~20 us at N = 1); they are named again here, which costs nothing.
+    """
+    hypotheses, process_noise, prior = bank
+    bank = FilterBank(HypothesisModels(*hypotheses), process_noise, prior)
+    settings, filters = FilterSettings(*settings), FilterStates(*filters)
+    signals, outputs = TrackedSignals(*signals), TrackOutputs(*outputs)
+    measured, t, h = signals.measured, signals.t, settings.h
+    started, clock, z, P, log_likelihood = filters
     nx, samples = measured.shape[1], measured.shape[2]
     variance = np.empty((stop - start, nx))
     drift_time = np.empty(stop - start)
@@ -205,20 +221,18 @@ def track_step(
     longest = (samples - 1) * h * (1.0 + 1e-9)
     for s in range(stop - start):
         m = start + s
-        measurement_variance(measured[m], noise_variance, squares, scratch, variance[s])
+        measurement_variance(measured[m], settings.noise_variance, squares, scratch, variance[s])
         held = False
         if not started[m]:
-            start_filters(measured[m, :, 0], variance[s], gain, nominal, prior, z[m], P[m], log_likelihood[m])
+            start_filters(measured[m, :, 0], variance[s], bank.hypotheses.gain, bank.hypotheses.nominal, bank.prior, z[m], P[m], log_likelihood[m])
             started[m] = True
         elif t[m] - clock[m] > longest:
-            carry_filters(t[m] - clock[m], lo, hi, q, h, z[m], P[m])
+            carry_filters(t[m] - clock[m], bank.hypotheses.lo, bank.hypotheses.hi, bank.process_noise, h, z[m], P[m])
             held = True
         clock[m] = t[m]
         drift_time[s] = 0.0 if held else h
-    track_filters(
-        coefficients, terms, lo, hi, gain, own, q, state_noise, forget, h, drift_time, start, measured, load, load_rate, variance,
-        z, P, log_likelihood, states, inputs,
-    )
+    track_filters(bank, settings, drift_time, start, signals, variance, filters, states, inputs)
+    estimates, evidence = outputs
     for m in range(start, stop):
         for d in range(z.shape[1] - 1):
             estimates[0, m, d], estimates[1, m, d] = z[m, d + 1, nx], P[m, d + 1, nx, nx]
@@ -230,10 +244,8 @@ def track_step(
 
 @numba.njit(cache=True)
 def track_filters(
-    coefficients: np.ndarray, terms: np.ndarray, lo: np.ndarray, hi: np.ndarray, gain: np.ndarray, own: np.ndarray, q: np.ndarray,
-    state_noise: float, forget: float, h: float, drift_time: np.ndarray, offset: int,
-    measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray, variance: np.ndarray,
-    z: np.ndarray, P: np.ndarray, log_likelihood: np.ndarray, states: tuple[float, ...], inputs: tuple[float, ...],
+    bank: FilterBank, settings: FilterSettings, drift_time: np.ndarray, offset: int, signals: TrackedSignals, variance: np.ndarray,
+    filters: FilterStates, states: tuple[float, ...], inputs: tuple[float, ...],
 ) -> None:
     """Every hypothesis's filter of systems offset, offset + 1, ... (one per entry of drift_time, variance
     (S, nx)) over samples 1..L of their step (in place); drift_time: (S,) how far theta drifts per
@@ -242,6 +254,11 @@ def track_filters(
     The S x H filters run LANES at a time (``filter_samples``); those whose parameter is fixed
     (``parameter_fixed``: the "none" hypothesis's) in blocks of their own, over their states alone.
     """
+    coefficients, terms, lo, hi, gain, own, _ = bank.hypotheses
+    q = bank.process_noise
+    measured, load, load_rate, _ = signals
+    z, P, log_likelihood = filters.z, filters.P, filters.log_likelihood
+    state_noise, forget, h = settings.state_noise, settings.forget, settings.h
     n_hyp = coefficients.shape[0]
     nx, nw = len(states), len(inputs)
     n = nx + 2
@@ -267,7 +284,7 @@ def track_filters(
             else:
                 listed[n_full, 0], listed[n_full, 1] = s, f
                 n_full += 1
-    block = np.empty(layout(nx, nw)[-1] * LANES)
+    block = np.empty(layout(nx, nw).rows * LANES)
     value, slope, basis = np.empty((nx, nx + nw)), np.empty((nx, nx + nw)), np.empty((2, coefficients.shape[1]))
     lane_system = np.empty(LANES, dtype=np.int64)
     density = np.empty((samples, LANES))
@@ -299,34 +316,35 @@ def track_filters(
 
 
 @numba.njit(cache=True)
-def layout(nx: int, nw: int) -> tuple[int, ...]:
-    """Where each quantity's rows start in a block of filters (each row LANES wide, one lane per filter):
-    Z (n), P (n x n), T (n x n), M0, dM, M (nx x (nx + nw) each), F0, F1 (nx), W (nw), Y (nx), gain
-    (nx), R (nx), Q (n), ht, anchor, lo, hi, own, each channel's innovation variance (nx) and
-    normalised innovation (nx), P h (n); and the rows in all."""
+def layout(nx: int, nw: int) -> BlockRows:
+    """Where each quantity's rows start in a block of filters (each row LANES wide, one lane per filter),
+    in ``BlockRows``' order, and the rows in all."""
     n, cols = nx + 2, nx + nw
-    Z = 0
-    P = Z + n
-    T = P + n * n
-    M0 = T + n * n
-    DM = M0 + nx * cols
-    M = DM + nx * cols
-    F0 = M + nx * cols
-    F1 = F0 + nx
-    W = F1 + nx
-    Y = W + nw
-    G = Y + nx
-    R = G + nx
-    Q = R + nx
-    HT = Q + n
-    ANCHOR = HT + 1
-    LO = ANCHOR + 1
-    HI = LO + 1
-    OWN = HI + 1
-    VAR = OWN + 1
-    VN = VAR + nx
-    PH = VN + nx
-    return Z, P, T, M0, DM, M, F0, F1, W, Y, G, R, Q, HT, ANCHOR, LO, HI, OWN, VAR, VN, PH, PH + n
+    state = 0
+    covariance = state + n
+    product = covariance + n * n
+    transition_anchor = product + n * n
+    transition_slope = transition_anchor + nx * cols
+    transition = transition_slope + nx * cols
+    theta_column = transition + nx * cols
+    predicted = theta_column + nx
+    inputs = predicted + nx
+    measured = inputs + nw
+    gain = measured + nx
+    noise = gain + nx
+    process_noise = noise + nx
+    drift_time = process_noise + n
+    anchor = drift_time + 1
+    lo = anchor + 1
+    hi = lo + 1
+    own = hi + 1
+    innovation_variance = own + 1
+    innovation = innovation_variance + nx
+    covariance_column = innovation + nx
+    return BlockRows(
+        state, covariance, product, transition_anchor, transition_slope, transition, theta_column, predicted, inputs, measured, gain,
+        noise, process_noise, drift_time, anchor, lo, hi, own, innovation_variance, innovation, covariance_column, covariance_column + n,
+    )
 
 
 @numba.njit(cache=True, inline="always")
@@ -346,7 +364,10 @@ def load_lane(
     n = z.shape[0]
     nx = n - 2
     cols = nx + nw
-    Z, PP, _, M0, DM, M, _, _, _, _, G, R, Q, HT, ANCHOR, LO, HI, OWN, _, _, _, _ = layout(nx, nw)
+    rows = layout(nx, nw)
+    Z, PP, M0, DM, M = rows.state, rows.covariance, rows.transition_anchor, rows.transition_slope, rows.transition
+    G, R, Q = rows.gain, rows.noise, rows.process_noise
+    HT, ANCHOR, LO, HI, OWN = rows.drift_time, rows.anchor, rows.lo, rows.hi, rows.own
     for a in range(n):
         block[at(Z + a, b)] = z[a]
         for c in range(n):
@@ -380,7 +401,8 @@ def filter_samples(
     distance, vectorizes.
     """
     nx, nw = len(states), len(inputs)
-    _, _, _, _, _, _, _, _, WW, YY, _, _, _, _, _, _, _, _, VAR, VN, _, _ = layout(nx, nw)
+    rows = layout(nx, nw)
+    WW, YY, VAR, VN = rows.inputs, rows.measured, rows.innovation_variance, rows.innovation
     for k in range(1, W.shape[0]):
         for b in range(lanes):
             s = lane_system[b]
@@ -409,7 +431,9 @@ def predict_states(
     ``measurement_update``)."""
     nx, nw, m = len(states), len(inputs), len(moving)
     n, cols = nx + 2, nx + nw
-    Z, _, _, M0, DM, M, F0, F1, WW, _, G, R, Q, HT, ANCHOR, _, _, OWN, _, _, _, _ = layout(nx, nw)
+    rows = layout(nx, nw)
+    Z, M0, DM, M, F0, F1 = rows.state, rows.transition_anchor, rows.transition_slope, rows.transition, rows.theta_column, rows.predicted
+    WW, G, R, Q, HT, ANCHOR, OWN = rows.inputs, rows.gain, rows.noise, rows.process_noise, rows.drift_time, rows.anchor, rows.own
     for b in range(lanes):
         if state_noise > 0.0:
             for i in range(nx):
@@ -446,7 +470,8 @@ def propagate_covariance(block: np.ndarray, lanes: int, states: tuple[float, ...
     (P symmetric: T^T = P J^T); a fixed parameter's F0 and theta rows are +0."""
     nx, nw, m = len(states), len(inputs), len(moving)
     n, cols = nx + 2, nx + nw
-    _, PP, T, _, _, M, F0, _, _, _, _, _, Q, HT, _, _, _, _, _, _, _, _ = layout(nx, nw)
+    rows = layout(nx, nw)
+    PP, T, M, F0, Q, HT = rows.covariance, rows.product, rows.transition, rows.theta_column, rows.process_noise, rows.drift_time
     for b in range(lanes):
         for i in range(nx):  # T = J P
             for j in range(m):
@@ -483,7 +508,9 @@ def measurement_update(block: np.ndarray, lanes: int, states: tuple[float, ...],
     where the model is defined (and positive, for a gain 1 / theta)."""
     nx, nw, m = len(states), len(inputs), len(moving)
     n = nx + 2
-    Z, PP, _, _, _, _, _, _, _, YY, G, R, _, _, _, LO, HI, OWN, VAR, VN, PH, _ = layout(nx, nw)
+    rows = layout(nx, nw)
+    Z, PP, YY, G, R, LO, HI, OWN = rows.state, rows.covariance, rows.measured, rows.gain, rows.noise, rows.lo, rows.hi, rows.own
+    VAR, VN, PH = rows.innovation_variance, rows.innovation, rows.covariance_column
     for b in range(lanes):
         for i in range(nx):
             if i == block[at(OWN, b)]:

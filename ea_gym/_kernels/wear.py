@@ -1,5 +1,7 @@
 """The wear of N systems' faulty components over a step, and their true RUL (``ea_gym.degradation.Wear``), in
 compiled loops: the arithmetic of its numpy form, element by element in the same order, so to the bit.
+
+Reference (the specification in plain numpy): ``ea_gym._kernels.reference.wear``.
 """
 
 from __future__ import annotations

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ea_gym._kernels.features import relative_noise
-from ea_gym._kernels.monitor import element_powers, monitor_chunk, smooth_rows
+from ea_gym._kernels.monitor import ChunkOutputs, ChunkSignals, EnergyWindows, NominalLaws, Smoothing, element_powers, monitor_chunk, smooth_rows
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.diagnosis.features import Frame
 from ea_gym.diagnosis.smoothing import SavitzkyGolay
@@ -140,8 +140,8 @@ class Monitor:
         ).reshape(-1, 3)
         self._context: np.ndarray | None = None  # last samples of the previous chunk, real then reference
         # the kernels' arguments: the filters' coefficients (``smooth_rows``), the nominal laws (``element_powers``)
-        self._smoothing = (self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1))
-        self._laws = (self._to_state, self._Cy, self._Dy0, self._Dy_constant, *self._bonds, self._inertia)
+        self._smoothing = Smoothing(self.filter.moments(), self.filter.lane_coefficients(0), self.filter.lane_coefficients(1))
+        self._laws = NominalLaws(self._to_state, self._Cy, self._Dy0, self._Dy_constant, *self._bonds, self._inertia)
 
     def reset(self, systems: np.ndarray | None = None) -> None:
         """Forget the smoothing context of all systems, or of those where the boolean mask is true."""
@@ -188,8 +188,8 @@ class Monitor:
         smooth = self.buffer("smooth", (M, channels, L))
         slope = self.buffer("slope", (M, len(self._inertia), L))
         power = self.buffer("power", (M, len(self.elements), L))
-        smooth_rows(rows, skip, cut, *self._smoothing, self._inertia, smooth, slope)
-        element_powers(smooth, slope, *self._laws, power)
+        smooth_rows(rows, skip, cut, self._smoothing, self._inertia, smooth, slope)
+        element_powers(smooth, slope, self._laws, power)
         return power, smooth
 
     def update(self, measured: np.ndarray, reference: np.ndarray, load: np.ndarray) -> MonitorWindow:
@@ -219,15 +219,11 @@ class Monitor:
         noise, signals = np.empty((n, 2, nx)), np.empty((n, nx, T))
         finite: list[bool] = []
         smoothing, laws, context = self._smoothing, self._laws, self._context
-        h, n_sub, n_balance, components, sources = self.h, self.n_sub, self.n_balance, self.component_index, self._source_index
+        windows = EnergyWindows(self.h, self.n_sub, self.n_balance, self.component_index, self._source_index)
+        chunk, outputs = ChunkSignals(measured, reference, load), ChunkOutputs(ea, residual, gram, cross, noise, signals)
 
         def chunk_rows(start: int, stop: int) -> None:
-            finite.append(
-                monitor_chunk(
-                    start, stop, measured, reference, load, context, *smoothing, *laws, h, n_sub, n_balance, components, sources,
-                    ea, residual, gram, cross, noise, signals,
-                )
-            )
+            finite.append(monitor_chunk(start, stop, chunk, context, smoothing, laws, windows, outputs))
 
         over_rows(chunk_rows, n)
         if not all(finite):

@@ -46,6 +46,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import chebyshev
 
+from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterStates, HypothesisModels, TrackedSignals, TrackOutputs
 from ea_gym._kernels.tracking import track
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import discretize
@@ -58,25 +59,6 @@ from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import DriftPrognosis
 from ea_gym.phm.registry import EstimationStages, register_estimator
 from ea_gym.threads import over_rows
-
-
-@dataclass(frozen=True)
-class HypothesisModels:
-    """What the kernel needs per hypothesis (H = D + 1, "none" first).
-
-    coefficients: (H, K, nx, nx + 4 or 5) Chebyshev coefficients of ``transition``'s [Phi | Gamma](theta), the first terms (H,) of
-    them nonzero; lo, hi: (H,) their
-    range (the parameter's unit); gain: (H, nx) measurement gains at nominal; own: (H,) the state whose
-    gain is 1 / theta (-1: none); nominal: (H,) theta at nominal (the "none" slot's: its unused parameter's).
-    """
-
-    coefficients: np.ndarray
-    terms: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-    gain: np.ndarray
-    own: np.ndarray
-    nominal: np.ndarray
 
 
 def transition(model: SystemModel, theta: np.ndarray, h: float) -> np.ndarray:
@@ -260,12 +242,13 @@ class TrackingEstimator:
         hyp, config = self.hypotheses, self.config
         estimates, evidence = np.empty((6, n, len(self.degradable))), np.empty((n, len(hyp.nominal)))
 
+        bank = FilterBank(hyp, self.process_noise, self.prior)
+        settings = FilterSettings(config.state_noise, self.forget, self.h, self.noise**2)
+        step, filters = TrackedSignals(measured, load, load_rate, t), FilterStates(self.started, self.clock, self.z, self.P, self.log_likelihood)
+        outputs = TrackOutputs(estimates, evidence)
+
         def track_rows(start: int, stop: int) -> None:
-            track(
-                hyp.coefficients, hyp.terms, hyp.lo, hyp.hi, hyp.gain, hyp.own, hyp.nominal, self.process_noise, self.prior,
-                config.state_noise, self.forget, self.h, self.noise**2, start, stop, measured, load, load_rate, t,
-                self.started, self.clock, self.z, self.P, self.log_likelihood, estimates, evidence,
-            )
+            track(bank, settings, start, stop, step, filters, outputs)
 
         over_rows(track_rows, n)
         value, variance, drift, drift_variance, covariance, time = estimates
