@@ -6,6 +6,6 @@ cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 .venv/bin/ruff check .
 .venv/bin/mypy
-.venv/bin/sphinx-build -W --keep-going -q -b html docs out/docs
+.venv/bin/sphinx-build -E -W --keep-going -q -b html docs out/docs
 export MPLBACKEND=Agg
 .venv/bin/python -m pytest -q "$@"
