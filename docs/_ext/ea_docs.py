@@ -1,6 +1,7 @@
 """The documentation's own Sphinx extension: pages generated from the code and the committed results.
 
-On ``builder-inited`` it writes, under ``docs/_generated/`` (not committed; the pages ``{include}`` them):
+On ``builder-inited`` (before autosummary, whose module pages under ``docs/_autosummary/`` it clears) it
+writes, under ``docs/_generated/`` (not committed; the pages ``{include}`` them):
 
 - ``env_docstring.md``: the maintenance environment's class docstring (``BondGraphMaintenanceEnv``),
   which is Gymnasium-style Markdown, so the environment pages show the code's own text;
@@ -21,6 +22,7 @@ from __future__ import annotations
 import inspect
 import json
 import re
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -99,13 +101,13 @@ def throughput_figure(results: dict[str, Any], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     figure, axis = plt.subplots(figsize=(7, 4), dpi=100)
-    for regime, sizes in results["regimes"].items():
+    for colour, (regime, sizes) in enumerate(results["regimes"].items()):
         ordered = sorted(sizes.items(), key=lambda item: int(item[0]))
         for kind, style in (("batched", "-o"), ("sync", ":s")):
             points = [(int(n), row[kind]["env_steps_per_s"]) for n, row in ordered if kind in row]
             if points:
                 xs, ys = zip(*points)
-                axis.plot(xs, ys, style, label=f"{regime}, {'batched env' if kind == 'batched' else 'SyncVectorEnv'}")
+                axis.plot(xs, ys, style, color=f"C{colour}", label=f"{regime}, {'batched env' if kind == 'batched' else 'SyncVectorEnv'}")
     axis.set(xscale="log", yscale="log", xlabel="systems per batch N", ylabel="env-steps/s", title="Throughput by regime")
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize=7, ncol=2)
@@ -119,6 +121,8 @@ def throughput_figure(results: dict[str, Any], path: Path) -> None:
 
 
 def generate(app: Sphinx) -> None:
+    # autosummary writes its module pages afresh after this: a module since removed or renamed leaves no stale page
+    shutil.rmtree(Path(app.srcdir) / "_autosummary", ignore_errors=True)
     out = Path(app.srcdir) / "_generated"
     _write(out / "env_docstring.md", env_docstring())
     results = json.loads(REGIMES.read_text())
@@ -160,6 +164,6 @@ def process_docstring(app: Sphinx, what: str, name: str, obj: Any, options: Any,
 
 
 def setup(app: Sphinx) -> dict[str, Any]:
-    app.connect("builder-inited", generate)
+    app.connect("builder-inited", generate, priority=100)  # before autosummary generates
     app.connect("autodoc-process-docstring", process_docstring, priority=400)
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
