@@ -268,6 +268,12 @@ def test_the_experiments_check_catches_a_missing_file() -> None:
     assert missing_experiment_files("experiments/models/two_mass_chain.yaml") == []
 
 
+def test_the_results_page_shows_every_committed_report() -> None:
+    shown = set(re.findall(r"```\{(?:include|literalinclude)\} \.\./(experiments/results/\S+)", (DOCS / "results.md").read_text()))
+    committed = {str(p.relative_to(ROOT)) for p in (ROOT / "experiments" / "results").rglob("*.md")}
+    assert committed <= shown
+
+
 # --- the README as the front page ------------------------------------------------------------------------------------
 
 
