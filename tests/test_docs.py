@@ -78,9 +78,8 @@ RUNNABLE = [p for p in PAGES if code_blocks(p.read_text(), ("python", "py"))]
 
 
 @pytest.mark.parametrize("page", RUNNABLE, ids=page_id)
-def test_every_python_block_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_every_python_block_runs(page: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    monkeypatch.setenv("EA_GYM_CACHE_DIR", os.environ.get("EA_GYM_CACHE_DIR", str(tmp_path / "cache")))
     run_python_blocks(page.read_text(), page_id(page))
 
 
