@@ -1,7 +1,7 @@
 """Bad inputs, one table: each case is the input and a fragment of the message it must be refused with.
 
 Command-line cases also check the refusal's form: exit code 2, one line on stderr (``ea-gym CMD: error: ...``), no
-traceback, and nothing written. The README states how many cases this table holds (``test_readme_states_the_count``).
+traceback, and nothing written. The CLI reference (docs/cli.md) states how many cases this table holds (``test_the_docs_state_the_count``).
 """
 
 from __future__ import annotations
@@ -449,6 +449,6 @@ def test_continuing_after_a_failure_keeps_stepping() -> None:
 N_CASES = len(CLI_CASES) + len(API_CASES) + 1  # and the full disk
 
 
-def test_readme_states_the_count() -> None:
-    readme = " ".join((Path(__file__).parents[1] / "README.md").read_text().split())
-    assert f"{N_CASES} bad inputs tried, {N_CASES} refused cleanly" in readme
+def test_the_docs_state_the_count() -> None:
+    page = " ".join((Path(__file__).parents[1] / "docs" / "cli.md").read_text().split())
+    assert f"{N_CASES} bad inputs tried, {N_CASES} refused cleanly" in page
