@@ -29,8 +29,9 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
     reference model runs under the same load, and the Energy-Activity PHM chain of the paper watches
     the noisy sensors: it computes every element's Energy Activity (EA) and EAI, detects a fault from
     the EA residuals, isolates the component with a neural network on STFT and energy-balance features,
-    estimates its parameter by EA inversion and extrapolates it to the safe limits for the remaining
-    useful life (RUL). The agent decides the maintenance: carry on, a corrective action on a component,
+    estimates its parameter (by default a Kalman filter per hypothesis tracking the parameter and its
+    drift; `phm=PHMConfig(estimator_kind="ea_inversion")` for the paper's EA inversion) and carries it
+    to the safe limits for the remaining useful life (RUL). The agent decides the maintenance: carry on, a corrective action on a component,
     or its replacement. Failure (a parameter outside its safe limits) is expensive; so are downtime,
     replacements and corrective actions.
 
