@@ -62,7 +62,7 @@ BAD = [
         "elements.G.value: missing: a source other than the load source",
     ),
     (SMD.replace("{kind: Se, unit: N}", "{kind: Se, unit: N, value: 3.0}"), "elements.F.value: the load source takes its value from the scenario"),
-    (SMD.replace("form: stiffness", "form: spring"), "elements.k.form: expected stiffness or compliance, got 'spring'"),
+    (SMD.replace("form: stiffness", "form: spring"), "elements.k.form: expected stiffness (effort = value x q) or compliance (effort = q / value), got 'spring'"),
     (SMD.replace("kind: R", "kind: Q"), "elements.b.kind: expected one of Se, Sf, R, C, I, TF, GY, 0, 1, got 'Q'"),
     (SMD.replace("kind: R, value", "kind: R, colour: red, value"), "elements.b.colour: not a field of a R element"),
     (SMD.replace("source: F", "source: m"), "load.source: expected one of the sources ['F'], got 'm'"),
