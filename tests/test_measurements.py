@@ -1,6 +1,8 @@
 """Recorded measurements: the CSV format (written exactly, every bad file named), the streaming chain
 (any chunking, the same statuses as the whole record), and ``ea-gym phm --measurements`` end to end."""
 
+import contextlib
+import io
 import json
 import re
 from pathlib import Path
@@ -11,10 +13,19 @@ import pytest
 from ea_gym.cli import main
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
-from ea_gym.measurements import MeasurementError, Measurements, noise_estimate, read_measurements, write_measurements
+from ea_gym.diagnosis.monitor import MonitorConfig
+from ea_gym.measurements import MeasurementError, Measurements, noise_estimate, read_measurements, resampled, write_measurements
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import ChainTiming, DetectorConfig, PHMChain, PHMConfig, calibrate_thresholds, run_signals
-from ea_gym.phm.harness import StreamingChain, fitted_initial_state, nominal_reference, run_measurements, scenario_measurements
+from ea_gym.phm.harness import (
+    StreamingChain,
+    chain_config,
+    chain_sample_rate,
+    fitted_initial_state,
+    nominal_reference,
+    run_measurements,
+    scenario_measurements,
+)
 from ea_gym.plant import run_model
 from ea_gym.scenario import load_scenario
 
@@ -103,6 +114,125 @@ def test_bad_csv_names_the_culprit(tmp_path, text, fragment):
         read_measurements(path, MODEL)
     assert fragment in str(error.value)
     assert str(path) in str(error.value)
+
+
+# ------------------------------------------------------------------------------------------------
+# the CSV as people write it: spreadsheets, units, other names, extra channels, other rates
+# ------------------------------------------------------------------------------------------------
+
+PLAIN = "\n".join(GOOD) + "\n"
+
+
+def _read_text(tmp_path, text: str, **options):
+    path = tmp_path / "m.csv"
+    path.write_bytes(text.encode("utf-8"))
+    return read_measurements(path, MODEL, **options)
+
+
+def _same_record(a: Measurements, b: Measurements) -> bool:
+    return all(np.array_equal(getattr(a, name), getattr(b, name)) for name in ("t", "load", "signals"))
+
+
+def test_a_spreadsheets_csv_reads_as_the_plain_one(tmp_path):
+    """A byte-order mark, ";" between cells, "," as the decimal point, units in brackets or parentheses."""
+    plain = _read_text(tmp_path, PLAIN)
+    rows = [line.replace(",", ";").replace(".", ",") for line in GOOD[1:]]
+    spreadsheet = "\ufeff" + "\n".join(["t [s];F (N);m [m/s];k [m]", *rows]) + "\n"
+    assert _same_record(_read_text(tmp_path, spreadsheet), plain)
+    with_bom = "\ufeff" + PLAIN
+    assert _same_record(_read_text(tmp_path, with_bom), plain)
+
+
+def test_prefixed_units_are_converted_to_si(tmp_path):
+    rows = [f"{i * 10},0.01,{i * 100},{i * 200}" for i in range(8)]  # t in ms, F in kN, m in mm/s, k in mm
+    read = _read_text(tmp_path, "\n".join(["t [ms],F [kN],m [mm/s],k [mm]", *rows]) + "\n")
+    np.testing.assert_allclose(read.t, np.arange(8) / 100, rtol=1e-15)
+    np.testing.assert_allclose(read.load, 10.0)
+    np.testing.assert_allclose(read.signals, np.column_stack([np.arange(8) / 10, np.arange(8) / 5]), rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("header", "fragment"),
+    [
+        ("t [s],F [N],m [ft/s],k [m]", "column 'm': unit 'ft/s' is not read (the m column's); expected m/s or a decimal prefix of it"),
+        ("t [s],F [N],m [m/s],k [m/s]", "column 'k': unit 'm/s' is not read (the k column's); expected m or a decimal prefix of it"),
+        ("t [min],F,m,k", "column 't': unit 'min' is not read (the t column's); expected s"),
+        ("t,F [lbf],m,k", "column 'F': unit 'lbf' is not read (the F column's); expected N"),
+    ],
+)
+def test_a_unit_that_is_not_the_columns_si_unit_is_refused(tmp_path, header, fragment):
+    with pytest.raises(MeasurementError) as error:
+        _read_text(tmp_path, "\n".join([header, *GOOD[1:]]) + "\n")
+    assert fragment in str(error.value)
+
+
+def test_columns_are_mapped_and_extra_channels_ignored_by_name(tmp_path):
+    plain = _read_text(tmp_path, PLAIN)
+    rows = [f"{line},21.5,ok" for line in GOOD[1:]]
+    renamed = "\n".join(["time [s],force,v_body [m/s],x,temperature,note", *rows]) + "\n"
+    read = _read_text(tmp_path, renamed, columns={"t": "time", "F": "force", "m": "v_body [m/s]", "k": "x"}, ignore=["temperature", "note"])
+    assert _same_record(read, plain)
+
+
+@pytest.mark.parametrize(
+    ("header", "options", "fragment"),
+    [
+        ("t,F,m,x", {}, "missing column 'k' (model spring_mass_damper needs columns t, F, m, k; found 't', 'F', 'm', 'x'; "
+                        "map another column to it with --columns k=COLUMN)"),
+        ("t,F,m,k,T", {}, "unexpected column 'T' (model spring_mass_damper needs columns t, F, m, k; found 't', 'F', 'm', 'k', 'T'; "
+                          "leave it unread with --ignore-columns T)"),
+        ("t,F,m,x", {"columns": {"k": "y"}}, "--columns k=... names column 'y', absent"),
+        ("t,F,m,k", {"columns": {"q": "k"}}, "--columns q=...: 'q' is not a column of model spring_mass_damper (t, F, m, k)"),
+        ("t,F,m,k", {"ignore": ["T"]}, "--ignore-columns: no column 'T' in the file (found 't', 'F', 'm', 'k')"),
+        (",".join(["t", "F", "m", "k", *(f"c{i}" for i in range(30))]), {}, "'c7', ... (34 in all)"),
+    ],
+)
+def test_column_messages_list_what_was_found_and_how_to_map_or_ignore(tmp_path, header, options, fragment):
+    width = header.count(",") + 1
+    rows = [",".join([line, *["0"] * (width - 4)]) for line in GOOD[1:]]
+    with pytest.raises(MeasurementError) as error:
+        _read_text(tmp_path, "\n".join([header, *rows]) + "\n", **options)
+    assert fragment in str(error.value)
+
+
+def _rounded(rate: float, samples: int, decimals: int) -> str:
+    return "\n".join(["t,F,m,k", *(f"{round(i / rate, decimals)},10,{i},{i}" for i in range(samples))]) + "\n"
+
+
+def test_rounded_timestamps_need_the_declared_rate_and_then_keep_to_its_grid(tmp_path):
+    text = _rounded(256.0, 600, 3)  # 256 Hz written to 1 ms
+    jitter = r"line 8: t = 0.023 s is 0.003 s after the line before, .* jitter in the record; timestamps rounded .* --sample-rate HZ"
+    with pytest.raises(MeasurementError, match=jitter):
+        _read_text(tmp_path, text)
+    read = _read_text(tmp_path, text, sample_rate=256.0)
+    assert read.sample_rate == 256.0 and np.array_equal(read.t, np.arange(600) / 256.0)
+    late = text.replace("\n0.043,", "\n0.045,")  # sample 11, at 42.97 ms, written 45 ms: beyond the 1 ms rounding
+    with pytest.raises(MeasurementError, match=r"line 13: t = 0.045 s is \+0.00203125 s off the declared 256 Hz grid .* rounding \(0.001 s\)"):
+        _read_text(tmp_path, late, sample_rate=256.0)
+    with pytest.raises(MeasurementError, match="off the declared 250 Hz grid"):
+        _read_text(tmp_path, text, sample_rate=250.0)
+
+
+def test_a_non_integer_rate_is_read_and_resampled_for_the_chain_keeping_the_band():
+    rate = 204.8
+    t = np.arange(2048) / rate
+    record = Measurements(t=t, load=10 + np.sin(2 * np.pi * 3 * t), signals=np.column_stack([np.cos(2 * np.pi * 5 * t), np.sin(2 * np.pi * t)]))
+    assert record.sample_rate == pytest.approx(rate, rel=1e-12)
+    assert chain_sample_rate(record.sample_rate) == 210.0 and chain_sample_rate(100.0) == 100.0 and chain_sample_rate(1.5) == 10.0
+    resampled_record = resampled(record, 210.0)
+    assert resampled_record.sample_rate == 210.0 and resampled_record.t[-1] <= t[-1]
+    s = resampled_record.t
+    inner = (s > 1.0) & (s < t[-1] - 1.0)  # the band-limited interpolation's edges aside
+    np.testing.assert_allclose(resampled_record.load[inner], 10 + np.sin(2 * np.pi * 3 * s[inner]), atol=1e-5)
+    np.testing.assert_allclose(resampled_record.signals[inner, 0], np.cos(2 * np.pi * 5 * s[inner]), atol=1e-5)
+    np.testing.assert_allclose(resampled_record.signals[:, 1], np.sin(2 * np.pi * s), atol=2e-3)  # the edges too
+
+
+def test_the_smoothing_window_fits_a_step_at_any_rate_from_10_hz():
+    assert chain_config(100.0, 0.01).monitor == MonitorConfig() and chain_config(60.0, 0.0).monitor.smoothing == 51
+    assert chain_config(50.0, 0.0).monitor.smoothing == 49 and chain_config(10.0, 0.0).monitor.smoothing == 9
+    with pytest.raises(ValueError, match="a chunk of 9 samples holds no smoothing window above the polynomial order 7"):
+        MonitorConfig().fitting(8)
 
 
 def test_only_regular_files_within_the_limits_are_read(tmp_path):
@@ -236,13 +366,15 @@ def recorded_runs(tmp_path_factory):
         assert main(["simulate", str(_write_scenario(directory, scenario, name)), "--csv", str(csv)]) == 0
         out = directory / f"{name}_out"
         args = ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--noise", str(NOISE), "--out", str(out)]
-        assert main(args) == 0
-        outputs[name] = (csv, out, json.loads((out / "results.json").read_text()))
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            assert main(args) == 0
+        outputs[name] = (csv, out, json.loads((out / "results.json").read_text()), printed.getvalue())
     return outputs
 
 
 def test_simulate_csv_is_the_scenarios_sensor_record(recorded_runs):
-    csv, _, _ = recorded_runs["fault"]
+    csv, _, _, _ = recorded_runs["fault"]
     read = read_measurements(csv, MODEL)
     scenario = load_scenario(SCENARIO)
     expected = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
@@ -255,9 +387,10 @@ def test_simulate_csv_is_the_scenarios_sensor_record(recorded_runs):
 
 
 def test_recorded_fault_is_detected_isolated_tracked_and_its_end_of_life_predicted(recorded_runs):
-    csv, out, results = recorded_runs["fault"]
+    csv, out, results, printed = recorded_runs["fault"]
     assert results["isolated_parameter"] == "k"
     assert 5.0 < results["detection_time"] < 15.0
+    assert f"detection at {results['detection_time']:g} s, isolated parameter k; wrote {out}/results.json" in printed
     # tracked: the estimate follows k's ramp 100 -> 88 N/m from 5 s (truth known from the scenario)
     t, value = np.array(results["estimate"]["t"]), np.array(results["estimate"]["value"])
     late = t >= 20.0
@@ -273,12 +406,17 @@ def test_recorded_fault_is_detected_isolated_tracked_and_its_end_of_life_predict
     assert sorted(p.name for p in out.iterdir()) == ["estimate.png", "report.md", "results.json", "rul.png", "signals.png", "time_frequency.png"]
     report = (out / "report.md").read_text()
     assert "truth unknown" in report and "true" not in report.replace("truth unknown", "")
+    last, estimate = results["eol_predictions"][-1], results["estimate"]
+    assert f"| latest End of Life (s) | {last['eol']:.4g} (k at its lower limit, predicted at {last['t']:g} s) |" in report
+    assert f"| latest RUL (s) [low, high] | {last['rul']:.4g} [{last['rul_low']:.4g}, {last['rul_high']:.4g}] |" in report
+    assert f"| latest estimate of k | {estimate['value'][-1]:.4g} at {estimate['t'][-1]:g} s |" in report
 
 
 def test_recorded_healthy_machine_raises_no_alarm(recorded_runs):
-    _, _, results = recorded_runs["healthy"]
+    _, out, results, printed = recorded_runs["healthy"]
     assert results["detection_time"] is None and results["isolated_parameter"] is None
     assert results["eol_predictions"] == []
+    assert printed.splitlines()[-1] == f"no fault detected; wrote {out}/results.json and report.md"
 
 
 CLI_ERRORS = [
