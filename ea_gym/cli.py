@@ -212,6 +212,8 @@ def _phm_measurements(args: argparse.Namespace) -> int:
                   f"(ea_gym.measurements.noise_estimate); the detection thresholds are calibrated for {noise:.2%} ({source}).")
     lines = [f"Times are seconds since the record's first sample (t = {recorded.t[0]:g} s in {args.measurements}).", noise_line]
     if measurements is not recorded:
+        lines[0] = (f"Times are seconds since t = {measurements.t[0]:g} s in {args.measurements}, the first sample the resampling "
+                    "filter sees the record on both sides of.")
         lines.append(f"The record's {recorded.sample_rate:g} Hz are resampled to {rate:g} Hz, a whole number of samples per "
                      f"EA sub-window (ea_gym.measurements.resampled); at that rate the noise reads {chain_noise:.2%}.")
     print("\n".join(lines[1:]))

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import csv
 import io
+import math
 import os
 import re
 from collections.abc import Collection, Iterable, Mapping
@@ -52,6 +53,9 @@ MAX_BYTES = 256 * 2**20
 MAX_ROWS = 2_000_000
 #: a sample's time may stray this fraction of the sampling period from the uniform grid
 TIME_TOLERANCE = 0.01
+#: how many of a record's samples either side :func:`resampled`'s filter reaches (scipy's ``resample_poly``: 10 x the
+#: larger of the up and down factors at the upsampled rate)
+RESAMPLING_REACH = 10
 #: the most column names a message lists
 LISTED_COLUMNS = 12
 
@@ -348,22 +352,29 @@ def _declared_grid(path: Path, t: np.ndarray, sample_rate: float) -> np.ndarray:
 
 def resampled(measurements: Measurements, sample_rate: float) -> Measurements:
     """The record at ``sample_rate`` (Hz), at least its own: band-limited (polyphase) interpolation of the load and the
-    signals alike, so that the linear model relating them still holds; the samples within the record's span.
+    signals alike, so that the linear model relating them still holds.
 
     One filter on every channel: the load and the signals keep their relation through any linear time-invariant
-    system (the model's), up to the filter's pass band (the record's Nyquist frequency)."""
+    system (the model's), up to the filter's pass band (the record's Nyquist frequency). The filter reaches
+    ``RESAMPLING_REACH`` samples of the record either way; the samples that close to its ends would need samples
+    it does not have (padded, they were 1e-3 off; the reference model fitted to them rang for tens of seconds),
+    so the result starts and ends that far inside."""
     from fractions import Fraction
 
     from scipy.signal import resample_poly
 
     ratio = Fraction(sample_rate / measurements.sample_rate).limit_denominator(100_000)
-    samples = (len(measurements.t) - 1) * ratio.numerator // ratio.denominator + 1
+    up, down = ratio.numerator, ratio.denominator
+    edge = math.ceil(RESAMPLING_REACH * max(up, down) / down)  # output samples within the filter's reach of the start
+    last = (len(measurements.t) - 1) * up // down - edge
+    if last - edge < 1:
+        raise MeasurementError(f"{len(measurements.t)} samples: too short to resample (the filter reaches {RESAMPLING_REACH} either way)")
     channels = np.column_stack([measurements.load, measurements.signals])
     # scipy's default Kaiser beta of 5 leaves each polyphase branch's DC gain 7e-4 apart (a 10 N load came out
     # rippling by 7 mN at 204.8 -> 210 Hz); beta 14: 2e-6
-    resampled_channels = resample_poly(channels, ratio.numerator, ratio.denominator, axis=0, window=("kaiser", 14.0), padtype="line")[:samples]
-    t = measurements.t[0] + np.arange(samples) / sample_rate
-    return Measurements(t=t, load=resampled_channels[:, 0], signals=resampled_channels[:, 1:], rate=sample_rate)
+    inside = resample_poly(channels, up, down, axis=0, window=("kaiser", 14.0))[edge : last + 1]
+    t = measurements.t[0] + np.arange(edge, last + 1) / sample_rate
+    return Measurements(t=t, load=inside[:, 0], signals=inside[:, 1:], rate=sample_rate)
 
 
 def noise_estimate(measurements: Measurements, step: int, window: int = 21, order: int = 3) -> float:

@@ -185,8 +185,7 @@ def test_every_model_file_in_the_repository_states_its_c_forms():
     files = [path for path in sorted(root.glob("experiments/**/*.yaml")) if "elements:" in path.read_text()]
     assert files  # the examples are found wherever they move
     for path in files:
-        model = load_model_file(path)
-        assert {element.c_form.value for element in model.graph.elements.values() if element.kind.value == "C"} == {"stiffness"}, path
+        load_model_file(path)  # a C element without its form is refused
 
 
 # a damped mass on a spring whose far end a road's vertical velocity moves: zero-mean, the load an Sf
