@@ -84,7 +84,7 @@ class Measurements:
         load: the load source's value at every sample (SI), (T,).
         signals: measured signal of every storage element (I: flow, C: displacement q), in
             ``SystemModel.state_names`` order, (T, nx).
-        rate: the declared sample rate (Hz); None: the one ``t`` gives.
+        rate: the sample rate (Hz) where it is known exactly (declared, or resampled to); None: the one ``t`` gives.
     """
 
     t: np.ndarray
@@ -221,13 +221,16 @@ def _column_order(
     for name in ignore:
         if name not in index and name not in cells:
             raise MeasurementError(f"{path}: --ignore-columns: no column {name!r} in the file (found {_listed(header)})")
-    order = []
+    order: list[int] = []
     for name in expected:
         wanted = columns.get(name, name)
         found = index.get(wanted, cells.index(wanted) if wanted in cells else None)
         if found is None:
             how = f"--columns {name}=... names column {wanted!r}, absent" if name in columns else f"missing column {name!r}"
             raise MeasurementError(f"{path}: {how} ({described}; map another column to it with --columns {name}=COLUMN)")
+        if found in order:
+            twice = expected[order.index(found)]
+            raise MeasurementError(f"{path}: column {header[found]!r} is read for both {twice} and {name}; expected one file column per model column")
         order.append(found)
     for k, name in enumerate(header):
         if k not in order and name not in ignore and cells[k] not in ignore:
@@ -323,7 +326,7 @@ def _check_increasing(path: Path, t: np.ndarray) -> None:
         raise MeasurementError(f"{path}: line {k + 2}: t = {t[k]:.9g} s does not increase (the line before has {t[k - 1]:.9g} s)")
 
 
-def timestamp_resolution(t: np.ndarray) -> float:
+def _timestamp_resolution(t: np.ndarray) -> float:
     """The step ``t`` is rounded to (s): 10^-d for the fewest decimals d <= 9 that write every t, else 0."""
     for decimals in range(10):
         scaled = t * 10.0**decimals
@@ -337,7 +340,7 @@ def _declared_grid(path: Path, t: np.ndarray, sample_rate: float) -> np.ndarray:
     rounding and its own: one resolution) plus ``TIME_TOLERANCE`` of a period."""
     _check_increasing(path, t)
     grid = t[0] + np.arange(len(t)) / sample_rate
-    resolution = timestamp_resolution(t)
+    resolution = _timestamp_resolution(t)
     tolerance = resolution + TIME_TOLERANCE / sample_rate
     off = np.abs(t - grid) > tolerance
     if np.any(off):

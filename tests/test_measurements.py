@@ -184,6 +184,7 @@ def test_columns_are_mapped_and_extra_channels_ignored_by_name(tmp_path):
         ("t,F,m,x", {"columns": {"k": "y"}}, "--columns k=... names column 'y', absent"),
         ("t,F,m,k", {"columns": {"q": "k"}}, "--columns q=...: 'q' is not a column of model spring_mass_damper (t, F, m, k)"),
         ("t,F,m,k", {"ignore": ["T"]}, "--ignore-columns: no column 'T' in the file (found 't', 'F', 'm', 'k')"),
+        ("t,F,m,k", {"columns": {"m": "k"}}, "column 'k' is read for both m and k; expected one file column per model column"),
         (",".join(["t", "F", "m", "k", *(f"c{i}" for i in range(30))]), {}, "'c7', ... (34 in all)"),
     ],
 )
