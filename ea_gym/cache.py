@@ -95,7 +95,8 @@ def model_definition(model: SystemModel) -> dict[str, Any]:
         "bonds": [[bond.tail, bond.head] for bond in graph.bonds],
     }
     for field in dataclasses.fields(model):
-        if field.name not in (*_LABELS, "graph"):
+        # an optional field left None (a load without its own scale) is left out: the keys of the models without it stay
+        if field.name not in (*_LABELS, "graph") and getattr(model, field.name) is not None:
             definition[field.name] = canonical(getattr(model, field.name))
     return definition
 

@@ -11,7 +11,15 @@ from importlib.metadata import entry_points
 from pathlib import Path
 from typing import TYPE_CHECKING, NoReturn
 
-from ea_gym.cli_args import COMMAND_GROUP, Subcommands, non_negative_float, positive_float
+from ea_gym.cli_args import (
+    COMMAND_GROUP,
+    Subcommands,
+    column_mapping,
+    column_names,
+    non_negative_float,
+    positive_float,
+    sample_rate_option,
+)
 from ea_gym.models import SystemModel
 
 if TYPE_CHECKING:
@@ -94,8 +102,10 @@ def _phm(args: argparse.Namespace) -> int:
     check_output_directory(args.out)
     if args.measurements is not None:
         return _phm_measurements(args)
-    if args.noise is not None or args.seed is not None:
-        raise ValueError(f"{'--noise' if args.noise is not None else '--seed'} goes with --measurements; a scenario names its sensor noise and seed")
+    given = [option for option, value in (("--noise", args.noise), ("--seed", args.seed), ("--columns", args.columns),
+                                          ("--ignore-columns", args.ignore_columns), ("--sample-rate", args.sample_rate)) if value]
+    if given:
+        raise ValueError(f"{given[0]} goes with --measurements; a scenario names its sensor noise, seed, signals and sample rate")
     from ea_gym.scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.system)  # before the chain's heavy imports: a bad file is refused at once
@@ -104,11 +114,11 @@ def _phm(args: argparse.Namespace) -> int:
 
     import numpy as np
 
-    from ea_gym.phm import ChainTiming, PHMConfig, build_chain, classifier_for, run_scenario
+    from ea_gym.phm import build_chain, chain_config, classifier_for, run_scenario
     from ea_gym.reporting import write_phm_outputs
 
     rng = np.random.default_rng(scenario.sensor_seed)
-    config = PHMConfig(timing=ChainTiming(sample_rate=scenario.sample_rate, noise=scenario.noise))
+    config = chain_config(scenario.sample_rate, scenario.noise)
     classifier = classifier_for(model, args.classifier)
     chain = build_chain(model, config, classifier, rng)
     run = run_scenario(scenario, chain, rng, progress=_progress)
@@ -146,9 +156,11 @@ def _model(args: argparse.Namespace) -> int:
     print(f"states: {states}")
     print("parameters:")
     print("\n".join(_parameter_lines(model)))
+    load_unit = model.units.get(model.load_source, "")
     constant = "".join(f"; {name} = {value:g} {model.units.get(name, '')}".rstrip() for name, value in model.source_values.items())
     print(
-        f"load: {model.load_source}, nominal {model.nominal_load:g} {model.units.get(model.load_source, '')}".rstrip()
+        f"load: {model.load_source}, nominal {model.nominal_load:g} {load_unit}".rstrip()
+        + (f", scale {model.load_scale:g} {load_unit}".rstrip() if model.load_scale is not None else "")
         + f", random loads up to {model.excitation_bandwidth:g} Hz{constant}"
     )
     fastest = model.fastest_mode()  # SystemModel.check_resolved's rule: |lambda| < pi * sample_rate
@@ -171,43 +183,65 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth."""
     import numpy as np
 
-    from ea_gym.energy import window_samples
-    from ea_gym.measurements import noise_estimate, read_measurements
+    from ea_gym.measurements import noise_estimate, read_measurements, resampled
     from ea_gym.model_files import load_system
-    from ea_gym.phm import ChainTiming, PHMConfig, build_chain, check_duration, classifier_for, run_measurements
+    from ea_gym.phm import build_chain, chain_config, chain_sample_rate, check_duration, classifier_for, run_measurements
     from ea_gym.reporting import write_phm_outputs
 
     if args.system is None:
         raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
     model = load_system(args.system)
     model.check_degradable()
-    measurements = read_measurements(args.measurements, model)
-    check_duration(measurements, PHMConfig(timing=ChainTiming(sample_rate=measurements.sample_rate)))  # before the calibration and the network
+    recorded = read_measurements(
+        args.measurements, model, columns=_column_mapping(args.columns), ignore=[name for names in args.ignore_columns for name in names],
+        sample_rate=args.sample_rate,
+    )
+    rate = chain_sample_rate(recorded.sample_rate)
+    measurements = recorded if rate == recorded.sample_rate else resampled(recorded, rate)
+    check_duration(measurements, chain_config(rate, 0.0))  # before the calibration and the network
     # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
-    estimate = noise_estimate(measurements, window_samples(ChainTiming().step, 1.0 / measurements.sample_rate))
+    estimate = noise_estimate(recorded, round(recorded.sample_rate))  # over 1 s steps
     noise = estimate if args.noise is None else args.noise
-    config = PHMConfig(timing=ChainTiming(sample_rate=measurements.sample_rate, noise=noise))
+    # resampled, the record's white noise keeps its density over its own band: white noise of that density at the chain's rate
+    chain_noise = noise if rate == recorded.sample_rate else noise * math.sqrt(rate / recorded.sample_rate)
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
-    chain = build_chain(model, config, classifier_for(model, args.classifier), rng)
+    chain = build_chain(model, chain_config(rate, chain_noise), classifier_for(model, args.classifier), rng)
     run = run_measurements(chain, measurements, progress=_progress)
     source = "the record's estimate" if args.noise is None else "--noise"
     noise_line = (f"The record's sensor noise looks like {estimate:.2%} of the signals' RMS "
                   f"(ea_gym.measurements.noise_estimate); the detection thresholds are calibrated for {noise:.2%} ({source}).")
-    print(noise_line)
+    lines = [f"Times are seconds since the record's first sample (t = {recorded.t[0]:g} s in {args.measurements}).", noise_line]
+    if measurements is not recorded:
+        lines[0] = (f"Times are seconds since t = {measurements.t[0]:g} s in {args.measurements}, the first sample the resampling "
+                    "filter sees the record on both sides of.")
+        lines.append(f"The record's {recorded.sample_rate:g} Hz are resampled to {rate:g} Hz, a whole number of samples per "
+                     f"EA sub-window (ea_gym.measurements.resampled); at that rate the noise reads {chain_noise:.2%}.")
+    print("\n".join(lines[1:]))
     if estimate > 1.5 * noise + 0.002:
         print(f"ea-gym phm: warning: --noise {noise:g} is likely too low for this record: alarms may be false", file=sys.stderr)
-    start = f"Times are seconds since the record's first sample (t = {measurements.t[0]:g} s in {args.measurements})."
     results = write_phm_outputs(
-        Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=[start, noise_line],
+        Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=lines,
         measurements=str(args.measurements),
     )
     _print_outcome(results, args.out)
     return 0
 
 
+def _column_mapping(pairs: list[tuple[str, str]]) -> dict[str, str]:
+    """``--columns``' NAME=COLUMN pairs as a mapping; a NAME given twice is refused."""
+    mapping: dict[str, str] = {}
+    for name, column in pairs:
+        if mapping.setdefault(name, column) != column:
+            raise ValueError(f"--columns: {name!r} is mapped twice ({mapping[name]!r} and {column!r}); expected one COLUMN per NAME")
+    return mapping
+
+
 def _print_outcome(results: dict, out: str) -> None:
-    isolated = results["isolated_parameter"]
-    print(f"detection at {results['detection_time']} s, isolated parameter {isolated}; wrote {out}/results.json and report.md")
+    from ea_gym.reporting.report import isolation_text
+
+    detection = results["detection_time"]
+    outcome = "no fault detected" if detection is None else f"detection at {detection:g} s, isolated parameter {isolation_text(results)}"
+    print(f"{outcome}; wrote {out}/results.json and report.md")
 
 
 def _train_isolation(args: argparse.Namespace) -> int:
@@ -295,9 +329,13 @@ def _add_phm(commands: Subcommands) -> None:
             "DIR/results.json (detection time, isolated parameter, class probabilities, the parameter estimate "
             "over time, End-of-Life predictions and, for a scenario with a fault, metrics against the truth), the "
             "figures (time-frequency map, estimate, RUL, signals; for a scenario also the estimate's error) and "
-            "DIR/report.md. The measurement CSV: one header row; a column t (s, increasing, uniformly sampled); "
-            "a column named after the model's load source (its value, SI); one column per storage element named "
-            "after it: an I element's flow (velocity, current), a C element's displacement q (extension, charge)."
+            "DIR/report.md. The measurement CSV: one header row; a column t (s, increasing, uniformly sampled at any "
+            "rate); a column named after the model's load source (its value, SI); one column per storage element named "
+            "after it: an I element's flow (velocity, current), a C element's displacement q (extension, charge). "
+            "Delimiter , or ; (a ; file may write 1,5 for 1.5); a UTF-8 byte-order mark is skipped. A header cell may "
+            "give its unit in brackets, 't [s]' or 'v (mm/s)': the column's SI unit or a decimal prefix of it "
+            "(converted); any other unit is refused. A record whose rate is not a multiple of 10 Hz is resampled to the "
+            "next one (band-limited) for the chain."
         ),
     )
     phm.add_argument("scenario", nargs="?", help="scenario file (.json, .yaml or .yml); or use --measurements")
@@ -308,6 +346,20 @@ def _add_phm(commands: Subcommands) -> None:
         help="isolation network file (default: the one shipped for the system, else the cached one, else one trained now and cached)",
     )
     phm.add_argument("--measurements", metavar="DATA.csv", help="run the chain on this recorded CSV instead of a scenario")
+    phm.add_argument(
+        "--columns", type=column_mapping, action="append", default=[], metavar="NAME=COLUMN",
+        help="with --measurements: read the model's column NAME (t, the load source, a storage element) from the file's COLUMN (repeatable)",
+    )
+    phm.add_argument(
+        "--ignore-columns", type=column_names, action="append", default=[], metavar="A,B",
+        help="with --measurements: leave these columns of the file unread (any other column the model does not name is refused)",
+    )
+    phm.add_argument(
+        "--sample-rate", type=sample_rate_option, metavar="HZ",
+        help=("with --measurements: the record's sample rate, where its timestamps are rounded (256 Hz written to 1 ms): "
+              "each t must then lie within its rounding of t0 + k / HZ, and that grid is used (default: t's own, "
+              "uniform within 1 %% of a period)"),
+    )
     phm.add_argument(
         "--noise", type=non_negative_float, metavar="FRACTION",
         help=("with --measurements: the sensors' noise std as a fraction of each signal's RMS over a 1 s step "

@@ -11,7 +11,7 @@ from typing import Any, Protocol
 
 __all__ = [
     "COMMAND_GROUP", "Subcommands", "env_option", "positive_int", "non_negative_int", "positive_float", "non_negative_float",
-    "fraction_below_one", "system_option",
+    "fraction_below_one", "system_option", "column_mapping", "column_names", "sample_rate_option",
 ]
 
 #: entry-point group of subcommands from other packages: each entry is ``add(commands: Subcommands) -> None``,
@@ -91,3 +91,30 @@ def system_option(text: str) -> str:
 
     load_system(text)
     return str(Path(text).resolve()) if is_model_file(text) else text
+
+
+def column_mapping(text: str) -> tuple[str, str]:
+    """``NAME=COLUMN``: the model's column NAME read from the file's column COLUMN (argparse type)."""
+    name, sep, column = (part.strip() for part in text.partition("="))
+    if not (sep and name and column):
+        raise argparse.ArgumentTypeError(f"expected NAME=COLUMN (the model's column, the file's), got {text!r}")
+    return name, column
+
+
+def column_names(text: str) -> list[str]:
+    """``A,B``: the file's columns, comma-separated (argparse type)."""
+    names = [name.strip() for name in text.split(",")]
+    if not all(names):
+        raise argparse.ArgumentTypeError(f"expected column names separated by commas, got {text!r}")
+    return names
+
+
+def sample_rate_option(text: str) -> float:
+    """A finite number of Hz > 0 (argparse type)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if not 0 < value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a sample rate in Hz > 0, got {text!r}")
+    return value

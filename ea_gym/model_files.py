@@ -13,12 +13,18 @@ A model file (the README's "Model files" section has a whole one)::
     bonds: [[F, v1], [v1, m1], [v1, k1], [v1, b1]]   # [tail, head]: positive power from tail to head
     load: {source: F, nominal: 10.0, bandwidth: 2.0}
 
-R, C, I, TF and GY carry ``value`` (> 0, SI) and an optional ``unit``; a C element's ``form`` is
-``stiffness`` (effort = value x q) or ``compliance`` (effort = q / value, the default); TF and GY follow
-:class:`ea_gym.bondgraph.Element`'s laws, their incoming bond first. ``limits: [lower, upper]`` (around
-the value) make a parameter degradable and maintainable. ``load`` names the source a scenario's load
-drives, its nominal value (the source's unit) and the band (Hz) of the random loads that excite the
-dynamics.
+R, C, I, TF and GY carry ``value`` (> 0, SI) and an optional ``unit``; a C element states its ``form``
+(required, no default): ``stiffness`` (effort = value x q, value in N/m) or ``compliance`` (effort =
+q / value, value in m/N or F); TF and GY follow :class:`ea_gym.bondgraph.Element`'s laws, their incoming
+bond first. ``limits: [lower, upper]`` (around the value) make a parameter degradable and maintainable.
+
+``load`` names the source a scenario's load drives (an effort source Se, e.g. a force, or a flow source
+Sf, e.g. a road's vertical velocity), its ``nominal`` value (the operating level in the source's unit;
+any finite number, 0 for a zero-mean load), the ``bandwidth`` (Hz) of the random loads that excite the
+dynamics and their ``scale`` (the source's unit; optional where the nominal is not 0, which it then
+defaults to; required where it is 0): random loads vary by 20 to 40 % of the scale around the nominal::
+
+    load: {source: zr, nominal: 0.0, scale: 0.1, bandwidth: 5.0}   # a zero-mean road velocity (m/s)
 
 :func:`load_model_file` checks all of it and builds a :class:`~ea_gym.models.SystemModel`; a
 :class:`ModelFileError` names, on one line, every element, bond or field that is wrong and what was
@@ -144,7 +150,7 @@ def _build(data: Any, problems: _Problems) -> SystemModel | None:
     load = _load(data.get("load"), elements, problems) if "load" in data else None
     if elements:
         _ports(elements, bonds, problems)
-        _source_values(elements, load, problems)
+        _source_values(elements, _load_source(data.get("load"), elements), problems)
     if problems or load is None:
         return None
     graph = BondGraph()
@@ -160,9 +166,10 @@ def _build(data: Any, problems: _Problems) -> SystemModel | None:
             nominal={e: v for e, v in values.items() if elements[e].kind.has_parameter},
             safe_limits={e: spec.limits for e, spec in elements.items() if spec.limits is not None},
             units={e: spec.unit for e, spec in elements.items() if spec.unit is not None},
-            load_source=load[0],
-            nominal_load=load[1],
-            excitation_bandwidth=load[2],
+            load_source=load.source,
+            nominal_load=load.nominal,
+            load_scale=load.scale,
+            excitation_bandwidth=load.bandwidth,
             description=description,
             source_values={e: v for e, v in values.items() if elements[e].kind.is_source},
         )
@@ -197,7 +204,7 @@ class _Element:
     kind: Kind
     value: float | None = None
     unit: str | None = None
-    form: CForm = CForm.CAPACITANCE
+    form: CForm = CForm.CAPACITANCE  # read only for a C element, which states it
     limits: tuple[float, float] | None = None
 
 
@@ -260,11 +267,12 @@ def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _P
         return None
     checked.value = float(value)
     if checked.kind is Kind.C:
-        form = spec.get("form", "compliance")
+        form = spec.get("form")
         if isinstance(form, str) and form in _C_FORMS:
             checked.form = _C_FORMS[form]
         else:
-            problems.add(f"{where}.form", f"expected stiffness or compliance, got {_describe(form)}")
+            given = _describe(form) if "form" in spec else "nothing (a C element states its form)"
+            problems.add(f"{where}.form", f"expected stiffness (effort = value x q) or compliance (effort = q / value), got {given}")
     if "limits" in spec:
         limits = spec["limits"]
         if not (isinstance(limits, list) and len(limits) == 2 and all(_number(v) and v > 0 for v in limits)):
@@ -277,12 +285,12 @@ def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _P
     return checked
 
 
-def _source_values(elements: Mapping[str, _Element], load: tuple[str, float, float] | None, problems: _Problems) -> None:
+def _source_values(elements: Mapping[str, _Element], load_source: str | None, problems: _Problems) -> None:
     """A constant value for every source but the load source, none for it."""
     for name, spec in elements.items():
         if not spec.kind.is_source:
             continue
-        if load is not None and name == load[0]:
+        if name == load_source:
             if spec.value is not None:
                 problems.add(f"elements.{name}.value", "the load source takes its value from the scenario's load; give load.nominal instead")
         elif spec.value is None:
@@ -326,30 +334,51 @@ def _ports(elements: Mapping[str, _Element], bonds: list[tuple[str, str]], probl
             problems.add(where, f"a {kind.value} element needs exactly 1 bond, has {ins + outs}")
 
 
-def _load(raw: Any, elements: Mapping[str, _Element], problems: _Problems) -> tuple[str, float, float] | None:
-    fields = ("source", "nominal", "bandwidth")
+@dataclass(frozen=True)
+class _Load:
+    """The load's checked fields (the source's unit; Hz)."""
+
+    source: str
+    nominal: float
+    scale: float | None
+    bandwidth: float
+
+
+_LOAD_FIELDS = ("source", "nominal", "scale", "bandwidth")
+
+
+def _load_source(raw: Any, elements: Mapping[str, _Element]) -> str | None:
+    """The load's source where it names one of the sources, whatever the load's other fields hold."""
+    source = raw.get("source") if isinstance(raw, dict) else None
+    return source if isinstance(source, str) and source in elements and elements[source].kind.is_source else None
+
+
+def _load(raw: Any, elements: Mapping[str, _Element], problems: _Problems) -> _Load | None:
     if not isinstance(raw, dict):
-        problems.add("load", f"expected a mapping with {', '.join(fields)}, got {_describe(raw)}")
+        problems.add("load", f"expected a mapping with {', '.join(_LOAD_FIELDS)} (scale optional), got {_describe(raw)}")
         return None
-    ok = True
+    count = len(problems)
     for key in raw:
-        if key not in fields:
-            problems.add(f"load.{key}", f"unknown field; expected {', '.join(fields)}")
-            ok = False
-    for key in fields:
+        if key not in _LOAD_FIELDS:
+            problems.add(f"load.{key}", f"unknown field; expected {', '.join(_LOAD_FIELDS)}")
+    for key in ("source", "nominal", "bandwidth"):
         if key not in raw:
             problems.add(f"load.{key}", "missing (required)")
-            ok = False
-    source = raw.get("source")
-    sources = [n for n, s in elements.items() if s.kind.is_source]
-    if "source" in raw and source not in sources:
-        problems.add("load.source", f"expected one of the sources {sources}, got {_describe(source)}")
-        ok = False
-    nominal, bandwidth = raw.get("nominal"), raw.get("bandwidth")
-    if "nominal" in raw and not (_number(nominal) and nominal > 0):
-        problems.add("load.nominal", f"expected a finite number > 0 (the load's nominal value, the source's unit), got {_describe(nominal)}")
-        ok = False
+    source = _load_source(raw, elements)
+    if "source" in raw and source is None:
+        sources = [n for n, s in elements.items() if s.kind.is_source]
+        problems.add("load.source", f"expected one of the sources {sources}, got {_describe(raw['source'])}")
+    nominal, scale, bandwidth = raw.get("nominal"), raw.get("scale"), raw.get("bandwidth")
+    if "nominal" in raw and not _number(nominal):
+        expected = "a finite number (the load's operating level, the source's unit; 0 for a zero-mean load)"
+        problems.add("load.nominal", f"expected {expected}, got {_describe(nominal)}")
+    if "scale" in raw and not (_number(scale) and scale > 0):
+        expected = "a finite number > 0 (the size of the random loads' variation, the source's unit)"
+        problems.add("load.scale", f"expected {expected}, got {_describe(scale)}")
+    elif "scale" not in raw and nominal == 0:
+        problems.add("load.scale", "missing: a zero-mean load (nominal 0) needs the size of its variation, a finite number > 0 in the source's unit")
     if "bandwidth" in raw and not (_number(bandwidth) and bandwidth > 0):
         problems.add("load.bandwidth", f"expected a finite number of Hz > 0, got {_describe(bandwidth)}")
-        ok = False
-    return (str(source), float(nominal), float(bandwidth)) if ok and _number(nominal) and _number(bandwidth) else None
+    if len(problems) > count or source is None or not (_number(nominal) and _number(bandwidth)):
+        return None
+    return _Load(source, float(nominal), None if scale is None else float(scale), float(bandwidth))

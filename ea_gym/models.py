@@ -40,11 +40,14 @@ class SystemModel:
         safe_limits: (lower, upper) safe limits of the degradable parameters (same units).
         units: SI unit of every parameter and of the load.
         load_source: the source element driven by a scenario's load.
-        nominal_load: the load's nominal value (N, V, ...), e.g. Table 2's F = 10 N.
+        nominal_load: the load's nominal value, its operating level (N, V, m/s, ...), e.g. Table 2's F = 10 N;
+            0 for a zero-mean load (a road's vertical velocity).
         excitation_bandwidth: bandwidth (Hz) of the random loads that excite the system's dynamics
             (above its resonances) when fault databases and environments draw loads.
         description: one line for people.
         source_values: the constant value of every source but the load source (its unit, e.g. N, V).
+        load_scale: the size of the random loads' variation (the load's unit): their std is 20 to 40 % of it;
+            None: |nominal_load|, which must then not be 0.
     """
 
     name: str
@@ -57,6 +60,7 @@ class SystemModel:
     excitation_bandwidth: float
     description: str = ""
     source_values: Mapping[str, float] = field(default_factory=dict)
+    load_scale: float | None = None
 
     def __post_init__(self) -> None:
         names = self.state_space.parameter_names
@@ -74,6 +78,11 @@ class SystemModel:
         for source, value in self.source_values.items():
             if not (isinstance(value, (int, float)) and math.isfinite(value)):
                 raise ParameterError(f"model {self.name!r}: source {source!r} = {value!r}; expected a finite constant")
+        if not (math.isfinite(self.nominal_load) and 0 < self.random_load_scale < math.inf):
+            raise ParameterError(
+                f"model {self.name!r}: load of {self.load_source!r}: nominal {self.nominal_load!r}, scale {self.load_scale!r}; expected a "
+                "finite nominal and a finite scale > 0 (a zero-mean load, nominal 0, needs its scale)"
+            )
         missing = sorted(set(names) - set(self.nominal))
         if missing:
             raise ParameterError(f"model {self.name!r}: no nominal value for {missing}")
@@ -82,6 +91,11 @@ class SystemModel:
         for key, bounds in self.safe_limits.items():
             self.check_limits(key, bounds, f"safe limits of {key!r}")
             self.check_inside_limits(key, self.nominal[key], bounds, f"nominal value of {key!r}")
+
+    @property
+    def random_load_scale(self) -> float:
+        """The size of the random loads' variation (the load's unit): ``load_scale``, else |``nominal_load``|."""
+        return abs(self.nominal_load) if self.load_scale is None else self.load_scale
 
     @cached_property
     def state_space(self) -> StateSpaceModel:

@@ -172,7 +172,7 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
      "fault.profile[1]: the model's fastest mode, |lambda| = 100 1/s"),
     ("measurements too slow for the model", _slow_measurements, "sample rate: the model's fastest mode, |lambda| = 3.16 1/s"),
     ("a C element's form as a list", _model_case(NO_LIMITS_MODEL.replace("form: stiffness", "form: [1]")),
-     "elements.k.form: expected stiffness or compliance, got a list"),
+     "elements.k.form: expected stiffness (effort = value x q) or compliance (effort = q / value), got a list"),
     ("phm on a bad scenario", _scenario_case(scenario(duration=-1.0), "phm"), "duration: Input should be greater than 0"),
     ("simulate --window 1e9", _scenario_case(GOOD, "simulate", "--window", "1e9"), "--window: 1e+09 s is longer than the run (10 s)"),
     ("simulate --window 0.015", _scenario_case(GOOD, "simulate", "--window", "0.015"), "--window: window = 0.015 s must be a positive whole number"),

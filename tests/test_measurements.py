@@ -1,6 +1,8 @@
 """Recorded measurements: the CSV format (written exactly, every bad file named), the streaming chain
 (any chunking, the same statuses as the whole record), and ``ea-gym phm --measurements`` end to end."""
 
+import contextlib
+import io
 import json
 import re
 from pathlib import Path
@@ -11,10 +13,19 @@ import pytest
 from ea_gym.cli import main
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
-from ea_gym.measurements import MeasurementError, Measurements, noise_estimate, read_measurements, write_measurements
+from ea_gym.diagnosis.monitor import MonitorConfig
+from ea_gym.measurements import MeasurementError, Measurements, noise_estimate, read_measurements, resampled, write_measurements
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import ChainTiming, DetectorConfig, PHMChain, PHMConfig, calibrate_thresholds, run_signals
-from ea_gym.phm.harness import StreamingChain, fitted_initial_state, nominal_reference, run_measurements, scenario_measurements
+from ea_gym.phm.harness import (
+    StreamingChain,
+    chain_config,
+    chain_sample_rate,
+    fitted_initial_state,
+    nominal_reference,
+    run_measurements,
+    scenario_measurements,
+)
 from ea_gym.plant import run_model
 from ea_gym.scenario import load_scenario
 
@@ -103,6 +114,126 @@ def test_bad_csv_names_the_culprit(tmp_path, text, fragment):
         read_measurements(path, MODEL)
     assert fragment in str(error.value)
     assert str(path) in str(error.value)
+
+
+# ------------------------------------------------------------------------------------------------
+# the CSV as people write it: spreadsheets, units, other names, extra channels, other rates
+# ------------------------------------------------------------------------------------------------
+
+PLAIN = "\n".join(GOOD) + "\n"
+
+
+def _read_text(tmp_path, text: str, **options):
+    path = tmp_path / "m.csv"
+    path.write_bytes(text.encode("utf-8"))
+    return read_measurements(path, MODEL, **options)
+
+
+def _same_record(a: Measurements, b: Measurements) -> bool:
+    return all(np.array_equal(getattr(a, name), getattr(b, name)) for name in ("t", "load", "signals"))
+
+
+def test_a_spreadsheets_csv_reads_as_the_plain_one(tmp_path):
+    """A byte-order mark, ";" between cells, "," as the decimal point, units in brackets or parentheses."""
+    plain = _read_text(tmp_path, PLAIN)
+    rows = [line.replace(",", ";").replace(".", ",") for line in GOOD[1:]]
+    spreadsheet = "\ufeff" + "\n".join(["t [s];F (N);m [m/s];k [m]", *rows]) + "\n"
+    assert _same_record(_read_text(tmp_path, spreadsheet), plain)
+    with_bom = "\ufeff" + PLAIN
+    assert _same_record(_read_text(tmp_path, with_bom), plain)
+
+
+def test_prefixed_units_are_converted_to_si(tmp_path):
+    rows = [f"{i * 10},0.01,{i * 100},{i * 200}" for i in range(8)]  # t in ms, F in kN, m in mm/s, k in mm
+    read = _read_text(tmp_path, "\n".join(["t [ms],F [kN],m [mm/s],k [mm]", *rows]) + "\n")
+    np.testing.assert_allclose(read.t, np.arange(8) / 100, rtol=1e-15)
+    np.testing.assert_allclose(read.load, 10.0)
+    np.testing.assert_allclose(read.signals, np.column_stack([np.arange(8) / 10, np.arange(8) / 5]), rtol=1e-15)
+
+
+@pytest.mark.parametrize(
+    ("header", "fragment"),
+    [
+        ("t [s],F [N],m [ft/s],k [m]", "column 'm': unit 'ft/s' is not read (the m column's); expected m/s or a decimal prefix of it"),
+        ("t [s],F [N],m [m/s],k [m/s]", "column 'k': unit 'm/s' is not read (the k column's); expected m or a decimal prefix of it"),
+        ("t [min],F,m,k", "column 't': unit 'min' is not read (the t column's); expected s"),
+        ("t,F [lbf],m,k", "column 'F': unit 'lbf' is not read (the F column's); expected N"),
+    ],
+)
+def test_a_unit_that_is_not_the_columns_si_unit_is_refused(tmp_path, header, fragment):
+    with pytest.raises(MeasurementError) as error:
+        _read_text(tmp_path, "\n".join([header, *GOOD[1:]]) + "\n")
+    assert fragment in str(error.value)
+
+
+def test_columns_are_mapped_and_extra_channels_ignored_by_name(tmp_path):
+    plain = _read_text(tmp_path, PLAIN)
+    rows = [f"{line},21.5,ok" for line in GOOD[1:]]
+    renamed = "\n".join(["time [s],force,v_body [m/s],x,temperature,note", *rows]) + "\n"
+    read = _read_text(tmp_path, renamed, columns={"t": "time", "F": "force", "m": "v_body [m/s]", "k": "x"}, ignore=["temperature", "note"])
+    assert _same_record(read, plain)
+
+
+@pytest.mark.parametrize(
+    ("header", "options", "fragment"),
+    [
+        ("t,F,m,x", {}, "missing column 'k' (model spring_mass_damper needs columns t, F, m, k; found 't', 'F', 'm', 'x'; "
+                        "map another column to it with --columns k=COLUMN)"),
+        ("t,F,m,k,T", {}, "unexpected column 'T' (model spring_mass_damper needs columns t, F, m, k; found 't', 'F', 'm', 'k', 'T'; "
+                          "leave it unread with --ignore-columns T)"),
+        ("t,F,m,x", {"columns": {"k": "y"}}, "--columns k=... names column 'y', absent"),
+        ("t,F,m,k", {"columns": {"q": "k"}}, "--columns q=...: 'q' is not a column of model spring_mass_damper (t, F, m, k)"),
+        ("t,F,m,k", {"ignore": ["T"]}, "--ignore-columns: no column 'T' in the file (found 't', 'F', 'm', 'k')"),
+        ("t,F,m,k", {"columns": {"m": "k"}}, "column 'k' is read for both m and k; expected one file column per model column"),
+        (",".join(["t", "F", "m", "k", *(f"c{i}" for i in range(30))]), {}, "'c7', ... (34 in all)"),
+    ],
+)
+def test_column_messages_list_what_was_found_and_how_to_map_or_ignore(tmp_path, header, options, fragment):
+    width = header.count(",") + 1
+    rows = [",".join([line, *["0"] * (width - 4)]) for line in GOOD[1:]]
+    with pytest.raises(MeasurementError) as error:
+        _read_text(tmp_path, "\n".join([header, *rows]) + "\n", **options)
+    assert fragment in str(error.value)
+
+
+def _rounded(rate: float, samples: int, decimals: int) -> str:
+    return "\n".join(["t,F,m,k", *(f"{round(i / rate, decimals)},10,{i},{i}" for i in range(samples))]) + "\n"
+
+
+def test_rounded_timestamps_need_the_declared_rate_and_then_keep_to_its_grid(tmp_path):
+    text = _rounded(256.0, 600, 3)  # 256 Hz written to 1 ms
+    jitter = r"line 8: t = 0.023 s is 0.003 s after the line before, .* jitter in the record; timestamps rounded .* --sample-rate HZ"
+    with pytest.raises(MeasurementError, match=jitter):
+        _read_text(tmp_path, text)
+    read = _read_text(tmp_path, text, sample_rate=256.0)
+    assert read.sample_rate == 256.0 and np.array_equal(read.t, np.arange(600) / 256.0)
+    late = text.replace("\n0.043,", "\n0.045,")  # sample 11, at 42.97 ms, written 45 ms: beyond the 1 ms rounding
+    with pytest.raises(MeasurementError, match=r"line 13: t = 0.045 s is \+0.00203125 s off the declared 256 Hz grid .* rounding \(0.001 s\)"):
+        _read_text(tmp_path, late, sample_rate=256.0)
+    with pytest.raises(MeasurementError, match="off the declared 250 Hz grid"):
+        _read_text(tmp_path, text, sample_rate=250.0)
+
+
+def test_a_non_integer_rate_is_read_and_resampled_for_the_chain_keeping_the_band():
+    rate = 204.8
+    t = np.arange(2048) / rate
+    record = Measurements(t=t, load=10 + np.sin(2 * np.pi * 3 * t), signals=np.column_stack([np.cos(2 * np.pi * 5 * t), np.sin(2 * np.pi * t)]))
+    assert record.sample_rate == pytest.approx(rate, rel=1e-12)
+    assert chain_sample_rate(record.sample_rate) == 210.0 and chain_sample_rate(100.0) == 100.0 and chain_sample_rate(1.5) == 10.0
+    resampled_record = resampled(record, 210.0)
+    s = resampled_record.t
+    # within the record by the filter's reach (10 samples) at either end, where it has the record on both sides
+    assert resampled_record.sample_rate == 210.0 and 10 / rate <= s[0] < 11 / rate and t[-1] - 12 / rate < s[-1] <= t[-1] - 10 / rate
+    np.testing.assert_allclose(np.diff(s), 1 / 210.0, rtol=1e-9)
+    np.testing.assert_allclose(resampled_record.load, 10 + np.sin(2 * np.pi * 3 * s), atol=1e-5)
+    np.testing.assert_allclose(resampled_record.signals, np.column_stack([np.cos(2 * np.pi * 5 * s), np.sin(2 * np.pi * s)]), atol=1e-5)
+
+
+def test_the_smoothing_window_fits_a_step_at_any_rate_from_10_hz():
+    assert chain_config(100.0, 0.01).monitor == MonitorConfig() and chain_config(60.0, 0.0).monitor.smoothing == 51
+    assert chain_config(50.0, 0.0).monitor.smoothing == 49 and chain_config(10.0, 0.0).monitor.smoothing == 9
+    with pytest.raises(ValueError, match="a chunk of 9 samples holds no smoothing window above the polynomial order 7"):
+        MonitorConfig().fitting(8)
 
 
 def test_only_regular_files_within_the_limits_are_read(tmp_path):
@@ -236,13 +367,15 @@ def recorded_runs(tmp_path_factory):
         assert main(["simulate", str(_write_scenario(directory, scenario, name)), "--csv", str(csv)]) == 0
         out = directory / f"{name}_out"
         args = ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--noise", str(NOISE), "--out", str(out)]
-        assert main(args) == 0
-        outputs[name] = (csv, out, json.loads((out / "results.json").read_text()))
+        printed = io.StringIO()
+        with contextlib.redirect_stdout(printed):
+            assert main(args) == 0
+        outputs[name] = (csv, out, json.loads((out / "results.json").read_text()), printed.getvalue())
     return outputs
 
 
 def test_simulate_csv_is_the_scenarios_sensor_record(recorded_runs):
-    csv, _, _ = recorded_runs["fault"]
+    csv, _, _, _ = recorded_runs["fault"]
     read = read_measurements(csv, MODEL)
     scenario = load_scenario(SCENARIO)
     expected = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
@@ -255,9 +388,10 @@ def test_simulate_csv_is_the_scenarios_sensor_record(recorded_runs):
 
 
 def test_recorded_fault_is_detected_isolated_tracked_and_its_end_of_life_predicted(recorded_runs):
-    csv, out, results = recorded_runs["fault"]
+    csv, out, results, printed = recorded_runs["fault"]
     assert results["isolated_parameter"] == "k"
     assert 5.0 < results["detection_time"] < 15.0
+    assert f"detection at {results['detection_time']:g} s, isolated parameter k; wrote {out}/results.json" in printed
     # tracked: the estimate follows k's ramp 100 -> 88 N/m from 5 s (truth known from the scenario)
     t, value = np.array(results["estimate"]["t"]), np.array(results["estimate"]["value"])
     late = t >= 20.0
@@ -273,12 +407,18 @@ def test_recorded_fault_is_detected_isolated_tracked_and_its_end_of_life_predict
     assert sorted(p.name for p in out.iterdir()) == ["estimate.png", "report.md", "results.json", "rul.png", "signals.png", "time_frequency.png"]
     report = (out / "report.md").read_text()
     assert "truth unknown" in report and "true" not in report.replace("truth unknown", "")
+    last, estimate = results["eol_predictions"][-1], results["estimate"]
+    assert f"| latest End of Life (s) | {last['eol']:.4g} (k at its lower limit, predicted at {last['t']:g} s) |" in report
+    assert f"| latest RUL (s) [low, high] | {last['rul']:.4g} [{last['rul_low']:.4g}, {last['rul_high']:.4g}] |" in report
+    assert f"| latest estimate of k | {estimate['value'][-1]:.4g} at {estimate['t'][-1]:g} s |" in report
 
 
 def test_recorded_healthy_machine_raises_no_alarm(recorded_runs):
-    _, _, results = recorded_runs["healthy"]
+    _, out, results, printed = recorded_runs["healthy"]
     assert results["detection_time"] is None and results["isolated_parameter"] is None
     assert results["eol_predictions"] == []
+    assert printed.splitlines()[-1] == f"no fault detected; wrote {out}/results.json and report.md"
+    assert "latest End of Life" not in (out / "report.md").read_text()
 
 
 CLI_ERRORS = [
@@ -311,11 +451,32 @@ def test_phm_measurements_errors_exit_2_in_one_line_writing_nothing(tmp_path, ca
         (["s.json", "--noise", "0.01"], "--noise goes with --measurements"),
         (["s.json", "--seed", "3"], "--seed goes with --measurements"),
         (["--system", "nonsense", "--measurements", "x.csv"], "unknown system 'nonsense'"),
+        (["s.json", "--columns", "m=v"], "--columns goes with --measurements"),
+        (["s.json", "--ignore-columns", "T"], "--ignore-columns goes with --measurements"),
+        (["s.json", "--sample-rate", "256"], "--sample-rate goes with --measurements"),
+        (["--system", "spring_mass_damper", "--measurements", "x.csv", "--columns", "m=a", "--columns", "m=b"],
+         "--columns: 'm' is mapped twice ('a' and 'b')"),
     ],
 )
 def test_phm_options_that_do_not_go_together(tmp_path, capsys, args, fragment):
     assert main(["phm", *args, "--out", str(tmp_path / "out")]) == 2
     assert fragment in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "fragment"),
+    [
+        (["--columns", "m"], "argument --columns: expected NAME=COLUMN (the model's column, the file's), got 'm'"),
+        (["--ignore-columns", "a,,b"], "argument --ignore-columns: expected column names separated by commas, got 'a,,b'"),
+        (["--sample-rate", "nan"], "argument --sample-rate: expected a sample rate in Hz > 0, got 'nan'"),
+    ],
+)
+def test_phm_measurement_options_refuse_bad_values_in_one_line(tmp_path, capsys, option, fragment):
+    with pytest.raises(SystemExit) as exit_:
+        main(["phm", "--system", "spring_mass_damper", "--measurements", "x.csv", *option, "--out", str(tmp_path / "out")])
+    error = capsys.readouterr().err
+    assert exit_.value.code == 2 and fragment in error and error.count("\n") == 1
     assert not (tmp_path / "out").exists()
 
 
@@ -402,3 +563,155 @@ def test_two_mass_chain_coupling_spring_fault_is_isolated_tracked_and_its_end_of
 def test_two_mass_chain_healthy_record_raises_no_alarm(two_mass_runs):
     results = two_mass_runs["healthy"]
     assert results["detection_time"] is None and results["isolated_parameter"] is None and results["eol_predictions"] == []
+
+
+# ------------------------------------------------------------------------------------------------
+# issue 32's acceptance: a quarter car on a road (a zero-mean velocity source as the load), its records
+# made by scipy's solve_ivp (not ea-gym's simulator) and written as people write them
+# ------------------------------------------------------------------------------------------------
+
+QUARTER_CAR = """\
+name: quarter_car
+description: a car's corner on a road whose vertical velocity zr drives the tyre
+elements:
+  zr: {kind: Sf, unit: m/s}
+  tyre: {kind: "0"}
+  kt: {kind: C, form: stiffness, value: 50000.0, unit: N/m}
+  wheel: {kind: "1"}
+  mu: {kind: I, value: 40.0, unit: kg}
+  strut: {kind: "0"}
+  stroke: {kind: "1"}
+  ks: {kind: C, form: stiffness, value: 16000.0, unit: N/m, limits: [13000.0, 17000.0]}
+  cs: {kind: R, value: 1000.0, unit: N s/m, limits: [800.0, 1200.0]}
+  body: {kind: "1"}
+  ms: {kind: I, value: 250.0, unit: kg, limits: [230.0, 270.0]}
+bonds: [[zr, tyre], [tyre, kt], [tyre, wheel], [wheel, mu], [wheel, strut], [strut, stroke], [stroke, ks], [stroke, cs],
+        [strut, body], [body, ms]]
+load: {source: zr, nominal: 0.0, scale: 0.1, bandwidth: 5.0}
+"""
+
+
+def _road_velocity(t: np.ndarray) -> np.ndarray:
+    """A zero-mean road velocity (m/s)."""
+    return 0.05 * np.sin(2 * np.pi * 1.3 * t) + 0.03 * np.sin(2 * np.pi * 3.1 * t + 1.0) + 0.02 * np.sin(2 * np.pi * 0.7 * t + 2.0)
+
+
+def _quarter_car_record(rate: float, duration: float, noise: float = NOISE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """t, the road velocity and the signals (tyre deflection, wheel velocity, strut deflection, body velocity: the model's
+    states kt, mu, ks, ms) of the quarter car's own equations integrated by solve_ivp, with sensor noise."""
+    from scipy.integrate import solve_ivp
+
+    kt, mu, ks, cs, ms = 50000.0, 40.0, 16000.0, 1000.0, 250.0
+
+    def motion(time: float, x: np.ndarray) -> list[float]:
+        tyre, wheel, strut, body = x
+        strut_force = ks * strut + cs * (wheel - body)
+        return [float(_road_velocity(np.array(time))) - wheel, (kt * tyre - strut_force) / mu, wheel - body, strut_force / ms]
+
+    t = np.arange(round(duration * rate) + 1) / rate
+    states = solve_ivp(motion, (0.0, t[-1]), np.zeros(4), t_eval=t, method="DOP853", rtol=1e-10, atol=1e-12).y.T
+    rng = np.random.default_rng(3)
+    noisy = states + noise * np.sqrt(np.mean(states**2, axis=0)) * rng.standard_normal(states.shape)
+    return t, _road_velocity(t), noisy
+
+
+@pytest.fixture(scope="module")
+def quarter_car(tmp_path_factory):
+    """The quarter car's model file and a small isolation network for it (a few seconds; healthy records need no verdict)."""
+    from ea_gym.diagnosis.database import DatabaseConfig
+    from ea_gym.diagnosis.training import TrainingConfig, train_isolation
+    from ea_gym.model_files import load_model_file
+
+    directory = tmp_path_factory.mktemp("quarter_car")
+    model_path = directory / "quarter_car.yaml"
+    model_path.write_text(QUARTER_CAR)
+    database = DatabaseConfig(intervals=1, noise_levels=(NOISE,), n_loads=1, fault_free_runs=1)
+    training = train_isolation(load_model_file(model_path), np.random.default_rng(0), database, TrainingConfig(epochs=5), variants=("strong",))
+    return model_path, training.classifiers["strong"].save(directory / "network.safetensors")
+
+
+def _phm(quarter_car, csv: Path, out: Path, *options: str) -> int:
+    model, network = quarter_car
+    return main(["phm", "--system", str(model), "--measurements", str(csv), "--classifier", str(network), "--noise", str(NOISE),
+                 "--out", str(out), *options])
+
+
+def test_quarter_car_at_50_hz_from_a_spreadsheet_runs_healthy(quarter_car, tmp_path, capsys):
+    """50 Hz (the model check asks for 12.7 Hz): a BOM, ';' and decimal commas, units in the header (ms, mm/s, mm), other
+    names mapped with --columns, a temperature channel left unread with --ignore-columns."""
+    t, road, signals = _quarter_car_record(50.0, 12.0)
+    header = "time [ms];road (mm/s);kt [m];mu [m/s];ks [mm];body velocity [m/s];temperature [degC]"
+    rows = [";".join(f"{value:.9g}".replace(".", ",") for value in (1e3 * t[k], 1e3 * road[k], signals[k, 0], signals[k, 1],
+                                                                  1e3 * signals[k, 2], signals[k, 3], 21.5)) for k in range(len(t))]
+    csv = tmp_path / "corner.csv"
+    csv.write_text("\ufeff" + "\n".join([header, *rows]) + "\n", encoding="utf-8")
+    out = tmp_path / "out"
+    assert _phm(quarter_car, csv, out, "--columns", "t=time", "--columns", "zr=road", "--columns", "ms=body velocity",
+                "--ignore-columns", "temperature") == 0
+    assert capsys.readouterr().out.splitlines()[-1] == f"no fault detected; wrote {out}/results.json and report.md"
+    results = json.loads((out / "results.json").read_text())
+    assert results["detection_time"] is None and results["run"]["sample_rate"] == 50.0 and results["run"]["duration"] == 12.0
+
+
+def test_quarter_car_at_204_8_hz_with_rounded_timestamps_runs_at_the_declared_rate(quarter_car, tmp_path, capsys):
+    """204.8 Hz written to 1 ms: refused as jitter until --sample-rate states the rate; then resampled to 210 Hz."""
+    t, road, signals = _quarter_car_record(204.8, 8.0)
+    rows = [",".join([f"{t[k]:.3f}", *(f"{value:.9g}" for value in (road[k], *signals[k]))]) for k in range(len(t))]
+    csv = tmp_path / "corner.csv"
+    csv.write_text("\n".join(["t [s],zr [m/s],kt [m],mu [m/s],ks [m],ms [m/s]", *rows]) + "\n")
+    out = tmp_path / "out"
+    assert _phm(quarter_car, csv, out) == 2
+    error = capsys.readouterr().err
+    assert "jitter in the record; timestamps rounded to fewer decimals than the period needs: declare the rate with --sample-rate HZ" in error
+    assert error.count("\n") == 1 and not out.exists()
+    assert _phm(quarter_car, csv, out, "--sample-rate", "204.8") == 0
+    printed = capsys.readouterr().out
+    assert "The record's 204.8 Hz are resampled to 210 Hz" in printed and printed.splitlines()[-1].startswith("no fault detected")
+    results = json.loads((out / "results.json").read_text())
+    assert results["detection_time"] is None and results["run"]["sample_rate"] == 210.0
+
+
+QUARTER_CAR_ERRORS = [
+    ("a C element without its form", QUARTER_CAR.replace("ks: {kind: C, form: stiffness,", "ks: {kind: C,"), "t,zr,kt,mu,ks,ms",
+     "elements.ks.form: expected stiffness (effort = value x q) or compliance (effort = q / value), got nothing"),
+    ("a zero-mean load without its scale", QUARTER_CAR.replace(" scale: 0.1,", ""), "t,zr,kt,mu,ks,ms",
+     "load.scale: missing: a zero-mean load (nominal 0) needs the size of its variation"),
+    ("a unit not the column's", QUARTER_CAR, "t,zr [km/h],kt,mu,ks,ms", "column 'zr': unit 'km/h' is not read (the zr column's); expected m/s"),
+    ("a missing column", QUARTER_CAR, "t,zr,kt,mu,ks,v_body",
+     "missing column 'ms' (model quarter_car needs columns t, zr, kt, mu, ks, ms; found 't', 'zr', 'kt', 'mu', 'ks', 'v_body'"),
+    ("an extra channel", QUARTER_CAR, "t,zr,kt,mu,ks,ms,T", "unexpected column 'T' (model quarter_car needs"),
+]
+
+
+@pytest.mark.parametrize(("model", "header", "fragment"), [case[1:] for case in QUARTER_CAR_ERRORS], ids=[case[0] for case in QUARTER_CAR_ERRORS])
+def test_quarter_car_bad_inputs_exit_2_in_one_line_writing_nothing(tmp_path, capsys, model, header, fragment):
+    (tmp_path / "model.yaml").write_text(model)
+    t, road, signals = _quarter_car_record(50.0, 1.0)
+    width = header.count(",") + 1
+    rows = [",".join(f"{value:.9g}" for value in (t[k], road[k], *signals[k], *[0.0] * (width - 6))) for k in range(len(t))]
+    (tmp_path / "corner.csv").write_text("\n".join([header, *rows]) + "\n")
+    out = tmp_path / "out"
+    assert main(["phm", "--system", str(tmp_path / "model.yaml"), "--measurements", str(tmp_path / "corner.csv"), "--out", str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith("ea-gym phm: error: ") and fragment in error and error.count("\n") == 1
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["corner.csv", "model.yaml"]
+
+
+def test_a_rate_near_the_model_checks_least_runs_resampled(tmp_path, capsys):
+    """The spring-mass-damper's model check accepts 1.01 Hz: a 1.5 Hz record (solve_ivp, noise-free) is resampled to
+    10 Hz, where a step of 10 samples takes a 9-sample smoothing window, and the healthy machine raises no alarm."""
+    from scipy.integrate import solve_ivp
+
+    def force(t):
+        return 10.0 + 3.0 * np.sin(2 * np.pi * 0.2 * t) + 2.0 * np.sin(2 * np.pi * 0.45 * t + 1.0)
+
+    t = np.arange(91) / 1.5
+    m, k, b = (MODEL.nominal[name] for name in ("m", "k", "b"))
+    motion = solve_ivp(lambda s, x: [(force(s) - k * x[1] - b * x[0]) / m, x[0]], (0.0, t[-1]), [0.0, 0.0], t_eval=t, rtol=1e-10, atol=1e-12)
+    csv = write_measurements(tmp_path / "slow.csv", MODEL, Measurements(t=t, load=force(t), signals=motion.y.T))
+    out = tmp_path / "out"
+    assert main(["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--noise", str(NOISE), "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert "The record's 1.5 Hz are resampled to 10 Hz" in printed and printed.splitlines()[-1].startswith("no fault detected")
+    results = json.loads((out / "results.json").read_text())
+    assert results["run"]["sample_rate"] == 10.0 and results["detection_time"] is None

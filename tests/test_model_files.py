@@ -2,6 +2,7 @@
 places where a model file stands in for a built-in name (scenario, env, CLI)."""
 
 import json
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -62,7 +63,10 @@ BAD = [
         "elements.G.value: missing: a source other than the load source",
     ),
     (SMD.replace("{kind: Se, unit: N}", "{kind: Se, unit: N, value: 3.0}"), "elements.F.value: the load source takes its value from the scenario"),
-    (SMD.replace("form: stiffness", "form: spring"), "elements.k.form: expected stiffness or compliance, got 'spring'"),
+    (
+        SMD.replace("form: stiffness", "form: spring"),
+        "elements.k.form: expected stiffness (effort = value x q) or compliance (effort = q / value), got 'spring'",
+    ),
     (SMD.replace("kind: R", "kind: Q"), "elements.b.kind: expected one of Se, Sf, R, C, I, TF, GY, 0, 1, got 'Q'"),
     (SMD.replace("kind: R, value", "kind: R, colour: red, value"), "elements.b.colour: not a field of a R element"),
     (SMD.replace("source: F", "source: m"), "load.source: expected one of the sources ['F'], got 'm'"),
@@ -165,6 +169,64 @@ def test_a_constant_flow_source_winds_the_spring_at_its_rate():
     # steady state: the mass at 0.2 m/s, the damper's force b v balanced by the spring: k q = b v
     assert run.flow["m"][-1] == pytest.approx(0.2, rel=1e-8)
     assert run.states[-1, model.state_names.index("k")] == pytest.approx(4.0 * 0.2 / 50.0, rel=1e-8)
+
+
+def test_a_c_element_without_its_form_is_refused_naming_it_and_the_forms(tmp_path):
+    text = SMD.replace("form: stiffness, ", "")
+    with pytest.raises(ModelFileError) as error:
+        load_model_file(_write(tmp_path, text))
+    assert str(error.value).endswith(
+        "elements.k.form: expected stiffness (effort = value x q) or compliance (effort = q / value), got nothing (a C element states its form)"
+    )
+
+
+def test_every_model_file_in_the_repository_states_its_c_forms():
+    root = Path(__file__).resolve().parents[1]
+    files = [path for path in sorted(root.glob("experiments/**/*.yaml")) if "elements:" in path.read_text()]
+    assert files  # the examples are found wherever they move
+    for path in files:
+        load_model_file(path)  # a C element without its form is refused
+
+
+# a damped mass on a spring whose far end a road's vertical velocity moves: zero-mean, the load an Sf
+ROAD = """name: on_the_road
+elements:
+  zr: {kind: Sf, unit: m/s}
+  e: {kind: "0"}
+  k: {kind: C, form: stiffness, value: 100.0, unit: N/m, limits: [85.0, 105.0]}
+  v: {kind: "1"}
+  m: {kind: I, value: 10.0, unit: kg, limits: [9.0, 11.0]}
+  b: {kind: R, value: 5.0, unit: N s/m}
+bonds: [[zr, e], [e, k], [e, v], [v, m], [v, b]]
+load: {source: zr, nominal: 0.0, scale: 0.1, bandwidth: 2.0}
+"""
+
+
+def test_a_zero_mean_flow_source_is_a_load_whose_random_loads_follow_its_scale(tmp_path):
+    from ea_gym.diagnosis.database import draw_loads
+
+    model = load_model_file(_write(tmp_path, ROAD))
+    assert model.load_source == "zr" and model.nominal_load == 0.0 and model.random_load_scale == 0.1
+    t = np.arange(20001) * 0.01
+    values = np.array([load.value(t) for load in draw_loads(model, 8, np.random.default_rng(0))])
+    assert np.all(np.abs(values.mean(axis=1)) < 0.01) and np.all((0.015 < values.std(axis=1)) & (values.std(axis=1) < 0.05))
+    assert spring_mass_damper().random_load_scale == spring_mass_damper().nominal_load  # the built-ins: as before
+    assert main(["model", str(tmp_path / "model.yaml")]) == 0
+
+
+@pytest.mark.parametrize(
+    ("load", "fragment"),
+    [
+        ("{source: zr, nominal: 0.0, bandwidth: 2.0}", "load.scale: missing: a zero-mean load (nominal 0) needs the size of its variation"),
+        ("{source: zr, nominal: zero, scale: 0.1, bandwidth: 2.0}", "load.nominal: expected a finite number (the load's operating level"),
+        ("{source: zr, nominal: 0.0, scale: -1, bandwidth: 2.0}", "load.scale: expected a finite number > 0"),
+    ],
+)
+def test_a_bad_load_field_is_blamed_not_the_load_source(tmp_path, load, fragment):
+    text = ROAD.replace("{source: zr, nominal: 0.0, scale: 0.1, bandwidth: 2.0}", load)
+    with pytest.raises(ModelFileError) as error:
+        load_model_file(_write(tmp_path, text))
+    assert fragment in str(error.value) and "elements.zr" not in str(error.value)
 
 
 def test_a_scenario_names_a_model_file_relative_to_itself(tmp_path):

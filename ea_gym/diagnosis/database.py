@@ -79,7 +79,7 @@ def draw_loads(model: SystemModel, n: int, rng: np.random.Generator) -> list[Ran
     return [
         RandomLoad.draw(
             mean=model.nominal_load,
-            std=model.nominal_load * rng.uniform(0.2, 0.4),
+            std=model.random_load_scale * rng.uniform(0.2, 0.4),
             bandwidth=model.excitation_bandwidth,
             rng=rng,
         )

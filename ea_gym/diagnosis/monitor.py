@@ -19,7 +19,7 @@ Everything is batched over N systems; time is the last axis.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -53,6 +53,21 @@ class MonitorConfig:
     polyorder: int = 3
     balance_window: float = 0.1
     state_polyorder: int = 7
+
+    def fitting(self, chunk_intervals: int) -> MonitorConfig:
+        """These settings with a smoothing window that fits a chunk of ``chunk_intervals`` intervals (``Monitor.update``
+        needs more samples than the window): ``smoothing`` where it fits, else the longest odd window that does (at a
+        low sample rate, 50 Hz and a 1 s step: 49 samples). Raises ValueError where no window above
+        ``state_polyorder`` fits."""
+        if chunk_intervals + 1 > self.smoothing:
+            return self
+        window = chunk_intervals if chunk_intervals % 2 else chunk_intervals - 1
+        if window <= self.state_polyorder:
+            raise ValueError(
+                f"a chunk of {chunk_intervals + 1} samples holds no smoothing window above the polynomial order "
+                f"{self.state_polyorder}; expected at least {self.state_polyorder + 3} samples per step"
+            )
+        return replace(self, smoothing=window)
 
 
 @dataclass(frozen=True)

@@ -37,7 +37,8 @@ class EnvConfig:
             corrective action restores the spring at 0.27 N/m/s, 1.35 % of its range per s).
         continue_after_failure: a failure forces a replacement with downtime instead of ending the episode.
         rul_max: RUL observations are clipped to [0, rul_max] (s).
-        load_std: range (low, high) of the random loads' std, fraction of the nominal load.
+        load_std: range (low, high) of the random loads' std, fraction of
+            ``SystemModel.random_load_scale`` (the nominal load unless the model gives a scale).
         phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
             (window, clock, sample rate and noise) is the environment's (``phm_config``). None: the defaults.
     """

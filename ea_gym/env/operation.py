@@ -31,7 +31,7 @@ class Loads:
         model: the machine (its nominal load (N, V, ...) and excitation bandwidth (Hz)).
         n_systems: N.
         h: sample period (s).
-        load_std: range (low, high) of the load's std, fraction of the nominal load.
+        load_std: range (low, high) of the load's std, fraction of ``model.random_load_scale`` (the nominal load unless the model gives a scale).
     """
 
     def __init__(self, model: SystemModel, n_systems: int, h: float, load_std: tuple[float, float]):
@@ -50,7 +50,7 @@ class Loads:
         model = self.model
         for i in np.flatnonzero(mask).tolist():
             rng = rngs[i]
-            std = model.nominal_load * rng.uniform(*self.load_std)
+            std = model.random_load_scale * rng.uniform(*self.load_std)
             self.mean[i] = model.nominal_load
             self.amplitude[i] = std * math.sqrt(2.0 / LOAD_COMPONENTS)
             self.frequency[i] = model.excitation_bandwidth - rng.uniform(0.0, model.excitation_bandwidth, LOAD_COMPONENTS)
@@ -95,7 +95,7 @@ class Operation:
         sample_rate: Hz.
         window: measured operation per step (s).
         noise: sensor noise, fraction of each signal's RMS.
-        load_std: range of the loads' std, fraction of the nominal load.
+        load_std: range of the loads' std, fraction of ``model.random_load_scale`` (the nominal load unless the model gives a scale).
     """
 
     def __init__(

@@ -3,6 +3,7 @@ streamed (:class:`StreamingChain`)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
@@ -310,6 +311,24 @@ def run_measurements(chain: PHMChain, measurements: Measurements, progress: Prog
         stream.feed(measurements.t[part], measurements.load[part], measurements.signals[part])
     stream.finish()
     return ChainRun.of(stream.statuses)
+
+
+def chain_sample_rate(record_rate: float, config: PHMConfig = PHMConfig()) -> float:
+    """The sample rate (Hz) the chain runs a record of ``record_rate`` Hz at: the record's own where an EA sub-window
+    (``MonitorConfig.sub_window``, 0.1 s) is a whole number of its samples (a multiple of 10 Hz), else the next
+    multiple above it, which :func:`~ea_gym.measurements.resampled` brings the record to (no band is lost)."""
+    per_sub_window = record_rate * config.monitor.sub_window
+    if per_sub_window >= 1 and abs(per_sub_window - round(per_sub_window)) <= 1e-9 * per_sub_window:
+        return record_rate
+    return math.ceil(per_sub_window) / config.monitor.sub_window
+
+
+def chain_config(sample_rate: float, noise: float) -> PHMConfig:
+    """The chain's settings at ``sample_rate`` (Hz, a whole number of samples per sub-window) and sensor ``noise``: the
+    defaults, with a smoothing window that fits a step (``MonitorConfig.fitting``: the default 51 samples above 50 Hz)."""
+    timing = ChainTiming(sample_rate=sample_rate, noise=noise)
+    monitor = PHMConfig().monitor.fitting(window_samples(timing.step, 1.0 / sample_rate))
+    return PHMConfig(timing=timing, monitor=monitor)
 
 
 def build_chain(

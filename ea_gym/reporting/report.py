@@ -48,6 +48,21 @@ def isolation_text(results: dict) -> str:
             f"(most likely {isolation['favoured']}, {isolation['confidence']:.0%})")
 
 
+def _latest_rows(results: dict) -> list[tuple[str, str]]:
+    """The last End-of-Life prediction (its EoL and RUL with their bounds) and the last estimate, where there are any."""
+    rows = []
+    predictions = results.get("eol_predictions") or []
+    if predictions:
+        last = predictions[-1]
+        where = f"{last['parameter']} at its {last['limit']} limit, predicted at {last['t']:g} s"
+        rows.append(("latest End of Life (s)", f"{_fmt(last['eol'])} ({where})"))
+        rows.append(("latest RUL (s) [low, high]", f"{_fmt(last['rul'])} [{_fmt(last['rul_low'])}, {_fmt(last['rul_high'])}]"))
+    estimate = results.get("estimate") or {}
+    if estimate.get("value"):
+        rows.append((f"latest estimate of {estimate['parameter']}", f"{_fmt(estimate['value'][-1])} at {estimate['t'][-1]:g} s"))
+    return rows
+
+
 def _summary_rows(results: dict) -> list[tuple[str, str]]:
     measurements = results.get("run", {}).get("measurements")
     rows = [("recorded measurements (truth unknown: no errors against it)", str(measurements))] if measurements else []
@@ -57,6 +72,7 @@ def _summary_rows(results: dict) -> list[tuple[str, str]]:
         ("class probabilities (the chain's belief at the end, which isolates)", _probabilities(results.get("class_probabilities", {}))),
         ("isolation network's own probabilities (mean since detection)", _probabilities(results.get("network_probabilities", {}))),
         ("End-of-Life predictions", str(len(results.get("eol_predictions", [])))),
+        *_latest_rows(results),
     ]
     metrics = results.get("metrics")
     if not metrics:
