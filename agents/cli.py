@@ -72,7 +72,7 @@ def _train(args: argparse.Namespace) -> int:
     # checkpoints land in the staging directory as the run goes; --out appears (or is replaced) only when it completes
     with staged_output(args.out, last=SUMMARY_FILE, carry_existing=continues) as staging:
         summary = train(run, staging, resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
-    print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
+    print(f"trained {args.algo} for {summary['steps']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
     return 0
 
 
