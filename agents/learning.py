@@ -58,7 +58,7 @@ def learn_steps(model: BaseAlgorithm, steps: int, callback: BaseCallback, progre
 def _resize_rollout(model: OnPolicyAlgorithm, n_steps: int) -> None:
     """Rollouts of ``n_steps`` steps of every environment from now on (a new, empty rollout buffer)."""
     model.n_steps = n_steps
-    model.rollout_buffer = model.rollout_buffer_class(
+    model.rollout_buffer = type(model.rollout_buffer)(
         n_steps, model.observation_space, model.action_space, device=model.device, gamma=model.gamma, gae_lambda=model.gae_lambda,
         n_envs=model.n_envs, **model.rollout_buffer_kwargs,
     )

@@ -55,6 +55,7 @@ from agents.conventions import (
     pickled,
     refuse_pickle,
 )
+from agents.hyperparameters import check_hyperparameters
 from agents.imitation import clone
 from agents.initial_policy import initial_probabilities, start_from
 from agents.learning import check_steps, learn_steps
@@ -213,22 +214,17 @@ def train(
         trust_pickle: let stable-baselines3 unpickle ``resume``'s files, which runs any code they hold;
             without it they are refused (``agents.conventions.UntrustedFileError``) before any work.
     """
-    if run.algo not in ALGORITHMS:
-        raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {run.algo!r}")
-    if run.timesteps <= 0 or run.n_envs <= 0:
-        raise ValueError(f"timesteps and n_envs must be positive, got {run.timesteps} and {run.n_envs}")
-    check_steps(run.timesteps, run.n_envs)
-    if run.dagger_rounds and run.teacher is None:
-        raise ValueError(f"dagger_rounds ({run.dagger_rounds}) needs a teacher to label the learner's steps")
+    _check_run(run)
     stored = None
     if resume is not None:
         resume = Path(resume)
         if not refuse_pickle(resume, trust_pickle):
             stored = read_agent(resume)
             _check_resumable(run, stored)
+    settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
+    check_hyperparameters(run.algo, settings, "hyperparameters")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
     tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
     env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs, shaped=True)
     # validation episodes run 8 at a time on the batched env
@@ -353,6 +349,17 @@ class SaveAgent(BaseCallback):
         if self.n_calls % self.every == 0:
             self.save(self.num_timesteps)
         return True
+
+
+def _check_run(run: TrainingRun) -> None:
+    """Refuse, before any work, a run that cannot train as asked."""
+    if run.algo not in ALGORITHMS:
+        raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {run.algo!r}")
+    if run.timesteps <= 0 or run.n_envs <= 0:
+        raise ValueError(f"timesteps and n_envs must be positive, got {run.timesteps} and {run.n_envs}")
+    check_steps(run.timesteps, run.n_envs)
+    if run.dagger_rounds and run.teacher is None:
+        raise ValueError(f"dagger_rounds ({run.dagger_rounds}) needs a teacher to label the learner's steps")
 
 
 def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:

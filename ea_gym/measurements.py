@@ -18,7 +18,7 @@ import csv
 import io
 import os
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -100,10 +100,11 @@ def read_measurements(
     except FileTooLargeError as error:
         read = f"more than the {max_bytes} bytes" if error.size is None else f"{error.size} bytes, more than the {max_bytes}"
         raise MeasurementError(f"{path}: {read} read; split the record") from None
-    lines = raw.count(b"\n") + (not raw.endswith(b"\n"))  # at least the header and the samples
+    # at least the header and the samples: the csv module ends a line at LF, CR LF or a CR alone
+    lines = raw.count(b"\n") + raw.count(b"\r") - raw.count(b"\r\n") + (not raw.endswith((b"\n", b"\r")))
     if lines - 1 > max_rows:
         raise MeasurementError(f"{path}: {lines - 1} lines after the header, more than the {max_rows} samples read; split the record")
-    rows = csv.reader(io.StringIO(raw.decode("utf-8", errors="replace"), newline=""))
+    rows = _rows(path, csv.reader(io.StringIO(raw.decode("utf-8", errors="replace"), newline="")))
     header = next(rows, None)
     if header is None:
         raise MeasurementError(f"{path}: empty file; expected a header row with columns {', '.join(measurement_columns(model))}")
@@ -120,6 +121,14 @@ def read_measurements(
     except ParameterError as error:
         raise MeasurementError(f"{path}: {error}") from None
     return measurements
+
+
+def _rows(path: Path, reader: Iterator[list[str]]) -> Iterator[list[str]]:
+    """The CSV's rows; one the csv module cannot split (a cell past its size limit, a stray quote) refused at its line."""
+    try:
+        yield from reader
+    except csv.Error as error:
+        raise MeasurementError(f"{path}: line {getattr(reader, 'line_num', '?')}: {error}; expected cells of plain decimal numbers") from None
 
 
 def _column_order(path: Path, header: list[str], model: SystemModel) -> list[int]:
