@@ -125,10 +125,13 @@ def read_measurements(
 
 def _rows(path: Path, reader: Iterator[list[str]]) -> Iterator[list[str]]:
     """The CSV's rows; one the csv module cannot split (a cell past its size limit, a stray quote) refused at its line."""
+    line = 1  # the line being read
     try:
-        yield from reader
+        for row in reader:
+            yield row
+            line += 1
     except csv.Error as error:
-        raise MeasurementError(f"{path}: line {getattr(reader, 'line_num', '?')}: {error}; expected cells of plain decimal numbers") from None
+        raise MeasurementError(f"{path}: line {line}: {error}; expected cells of plain decimal numbers") from None
 
 
 def _column_order(path: Path, header: list[str], model: SystemModel) -> list[int]:

@@ -402,6 +402,24 @@ def test_outputs_move_into_an_existing_directory_together(tmp_path: Path) -> Non
     assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".")] == []  # no staging left
 
 
+def test_a_link_in_an_existing_out_is_replaced_not_written_through(tmp_path: Path) -> None:
+    """An output file and an output directory whose names are links in --out (to a file, to a directory elsewhere): the
+    outputs take the links' places, the links' targets are left as they were."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    _write(elsewhere / "kept.txt", "kept")
+    (out / "report.md").symlink_to(elsewhere / "kept.txt")
+    (out / "figures").symlink_to(elsewhere, target_is_directory=True)
+    with ea_gym.files.staged_output(out) as staging:
+        _write(staging / "report.md", "new report")
+        (staging / "figures").mkdir()
+        _write(staging / "figures" / "a.png", "new figure")
+    assert not (out / "report.md").is_symlink() and (out / "report.md").read_text() == "new report"
+    assert not (out / "figures").is_symlink() and _snapshot(out / "figures") == {"a.png"}
+    assert _snapshot(elsewhere) == {"kept.txt"} and (elsewhere / "kept.txt").read_text() == "kept"
+
+
 def test_out_at_the_working_directory_is_written_in_place(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """``--out .`` (a path without parents) is the working directory, not a traceback."""
     monkeypatch.chdir(tmp_path)

@@ -283,3 +283,19 @@ def test_training_leaves_nothing_in_the_temporary_directory(tmp_path, monkeypatc
     assert main([*TINY_TRAIN, "--out", str(tmp_path / "out")]) == 0, capsys.readouterr().err
     assert "trained a2c for 64 steps" in capsys.readouterr().out
     assert list(private.iterdir()) == []
+
+
+@pytest.mark.parametrize("algo", ["ppo", "a2c", "dqn"])
+def test_the_default_hyperparameters_pass_the_checks_agent_files_get(algo):
+    """And every checked name is one the algorithm's constructor takes (a misspelt one would never be settable)."""
+    import inspect
+
+    from agents.agent_files import ALGORITHMS
+    from agents.hyperparameters import HYPERPARAMETERS, check_hyperparameters
+    from agents.training import default_hyperparameters
+
+    for cloned in (False, True):
+        check_hyperparameters(algo, default_hyperparameters(algo, 16, cloned=cloned), "hyperparameters")
+    assert set(HYPERPARAMETERS[algo]) <= set(inspect.signature(ALGORITHMS[algo]).parameters)
+    with pytest.raises(ValueError, match=r"^hyperparameters.gamma must be a finite number in \[0, 1\], got 1.5$"):
+        check_hyperparameters(algo, {"gamma": 1.5}, "hyperparameters")
