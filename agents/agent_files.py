@@ -47,8 +47,9 @@ from stable_baselines3.dqn.policies import DQNPolicy
 from stable_baselines3.dqn.policies import MultiInputPolicy as DQNMultiInputPolicy
 
 from agents.conventions import AGENT_FILE, OPTIMIZER_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE
+from agents.hyperparameters import check_hyperparameters
 from ea_gym.documents import DocumentError, read_document
-from ea_gym.files import write_atomic, write_json
+from ea_gym.files import refuse_links, write_atomic, write_json
 
 __all__ = [
     "FORMAT", "VERSION", "ALGORITHMS", "RunningStats", "Normalization", "TrainedEnvironment", "AgentDescription",
@@ -101,7 +102,10 @@ class RunningStats:
         var = _array(_field(data, "var", list, where), shape, np.float64, f"{where}.var")
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
             raise ValueError(f"{where}: means must be finite and variances finite and >= 0")
-        return cls(mean, var, _number(_field(data, "count", (int, float), where), f"{where}.count"))
+        count = _number(_field(data, "count", (int, float), where), f"{where}.count")
+        if count < 0:
+            raise ValueError(f"{where}.count must be >= 0 (samples seen), got {count}")
+        return cls(mean, var, count)
 
 
 @dataclass(frozen=True)
@@ -163,11 +167,11 @@ class Normalization:
         if sorted(map(str, keys)) != sorted(statistics):
             raise ValueError(f"{where}: obs_rms must hold one entry per key of norm_obs_keys {keys}, got {sorted(statistics)}")
         return cls({str(key): RunningStats.from_json(statistics[key], f"{where}.obs_rms.{key}") for key in keys},
-                   _number(_field(data, "clip_obs", (int, float), where), f"{where}.clip_obs"),
-                   _number(_field(data, "epsilon", (int, float), where), f"{where}.epsilon"),
+                   _positive(_field(data, "clip_obs", (int, float), where), f"{where}.clip_obs"),
+                   _positive(_field(data, "epsilon", (int, float), where), f"{where}.epsilon"),
                    _field(data, "norm_reward", bool, where),
-                   _number(_field(data, "clip_reward", (int, float), where), f"{where}.clip_reward"),
-                   _number(_field(data, "gamma", (int, float), where), f"{where}.gamma"),
+                   _positive(_field(data, "clip_reward", (int, float), where), f"{where}.clip_reward"),
+                   _fraction(_field(data, "gamma", (int, float), where), f"{where}.gamma"),
                    RunningStats.from_json(_field(data, "ret_rms", dict, where), f"{where}.ret_rms"))
 
 
@@ -240,6 +244,7 @@ def save_agent(
 def read_agent(directory: Path) -> AgentDescription:
     """``directory/agent.json`` read and checked (no weights loaded); ValueError naming the field otherwise."""
     path = Path(directory) / AGENT_FILE
+    refuse_links(directory, "as an agent")
     try:
         data = read_document(path)
     except DocumentError as error:
@@ -264,10 +269,15 @@ def read_agent(directory: Path) -> AgentDescription:
     groups = optimizer.get("param_groups")
     if groups is not None and not (isinstance(groups, list) and all(isinstance(g, dict) for g in groups)):
         raise ValueError(f"{where}: optimizer.param_groups must be a list of objects")
+    hyperparameters = _field(data, "hyperparameters", dict, where)
+    check_hyperparameters(algorithm, hyperparameters, f"{where}: hyperparameters")
+    num_timesteps = _field(data, "num_timesteps", int, where)
+    if num_timesteps < 0:
+        raise ValueError(f"{where}: num_timesteps must be an integer >= 0 (environment steps trained), got {num_timesteps}")
     return AgentDescription(
         algorithm=algorithm,
-        hyperparameters=_field(data, "hyperparameters", dict, where),
-        num_timesteps=_field(data, "num_timesteps", int, where),
+        hyperparameters=hyperparameters,
+        num_timesteps=num_timesteps,
         policy_class=policy_class,
         policy_kwargs=_resolve_kwargs(_field(policy, "kwargs", dict, f"{where}: policy"), f"{where}: policy.kwargs"),
         observation_space=observation_space,
@@ -399,11 +409,22 @@ def _architecture(policy: BasePolicy) -> dict[str, Any]:
 
 
 def _resolve_kwargs(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
+    if "net_arch" in kwargs:
+        _check_net_arch(kwargs["net_arch"], f"{where}.net_arch")
     resolved = dict(kwargs)
     for name, table in CLASS_ARGUMENTS.items():
         if name in resolved:
             resolved[name] = _class(table, resolved[name], f"{where}.{name}")
     return resolved
+
+
+def _check_net_arch(net_arch: Any, where: str) -> None:
+    """stable-baselines3's ``net_arch``: the hidden layers' widths, shared (a list) or the actor's and the critic's
+    (``{"pi": [...], "vf": [...]}``); every width an integer >= 1."""
+    layers = net_arch.values() if isinstance(net_arch, dict) and set(net_arch) <= {"pi", "vf"} else [net_arch]
+    for widths in layers:
+        if not (isinstance(widths, list) and all(isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in widths)):
+            raise ValueError(f"{where} must be a list of layer widths (integers >= 1) or {{\"pi\": [...], \"vf\": [...]}}, got {net_arch!r}")
 
 
 def _write_tensors(path: Path, tensors: Mapping[str, th.Tensor]) -> None:
@@ -466,6 +487,19 @@ def _array(values: list[Any], shape: tuple[int, ...], dtype: Any, where: str) ->
 def _number(value: float, where: str) -> float:
     if not math.isfinite(value):
         raise ValueError(f"{where} must be finite, got {value}")
+    return float(value)
+
+
+def _positive(value: float, where: str) -> float:
+    """A clip or an epsilon: a finite number > 0 (a negative clip would clip every observation to its negative bound)."""
+    if not (math.isfinite(value) and value > 0):
+        raise ValueError(f"{where} must be a finite number > 0, got {value}")
+    return float(value)
+
+
+def _fraction(value: float, where: str) -> float:
+    if not 0 <= value <= 1:
+        raise ValueError(f"{where} must be a number in [0, 1], got {value}")
     return float(value)
 
 

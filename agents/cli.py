@@ -72,7 +72,7 @@ def _train(args: argparse.Namespace) -> int:
     # checkpoints land in the staging directory as the run goes; --out appears (or is replaced) only when it completes
     with staged_output(args.out, last=SUMMARY_FILE, carry_existing=continues) as staging:
         summary = train(run, staging, resume=resume, progress_bar=not args.no_progress, trust_pickle=args.trust_pickle)
-    print(f"trained {args.algo} for {args.timesteps} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
+    print(f"trained {args.algo} for {summary['steps']} steps in {summary['wall_time_s']} s ({summary['steps_per_s']} steps/s); wrote {args.out}")
     return 0
 
 
@@ -159,7 +159,9 @@ def add_train(commands: Subcommands) -> None:
         ),
     )
     train.add_argument("--algo", choices=["ppo", "dqn", "a2c"], default="ppo", help="algorithm (default ppo)")
-    train.add_argument("--timesteps", type=positive_int, default=200_000, help="environment steps (default 200000)")
+    train.add_argument("--timesteps", type=positive_int, default=200_000,
+                       help="environment steps, exactly: a multiple of --n-envs (default 200000); a last rollout shorter than "
+                            "the others takes what whole rollouts leave")
     train.add_argument("--obs-mode", choices=["phm", "sensors", "oracle"], default="phm", help="information regime (default phm)")
     train.add_argument("--out", required=True, metavar="DIR",
                        help="output directory, new or empty, or the --resume agent's own directory (or the one holding its "

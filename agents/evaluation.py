@@ -42,6 +42,8 @@ __all__ = ["EpisodeStats", "evaluate", "tune", "tuning_row", "mean_ci95", "COST_
 
 #: the items an episode's cost is broken down into: the environment's cost items but their total
 COST_BREAKDOWN = tuple(item for item in COST_ITEMS if item != "total")
+#: the progress bar of ``evaluate``: episodes' worth of steps done, to a tenth
+PROGRESS_FORMAT = "{l_bar}{bar}| {n:.1f}/{total:.0f} episodes [{elapsed}<{remaining}]"
 _FIELDS = (
     "cost", "failures", "availability", "maintenance_actions", "replacements", "corrective_steps",
     "ignored_actions", "steps", *(f"cost_{item}" for item in COST_BREAKDOWN),
@@ -195,6 +197,8 @@ def _batch(policy: Any, env: Any, seeds: Sequence[int] | np.ndarray, progress: A
     observation, _ = env.reset(seed=[int(s) for s in seeds])
     tally = _Tally(n, getattr(env.unwrapped, "action_meanings", ()))
     state, start, active = None, np.ones(n, dtype=bool), np.ones(n, dtype=bool)
+    # the episodes mostly end together, at the horizon: the bar moves by each step's share of an episode
+    horizon, steps, done = _horizon(env), 0, 0.0
     while np.any(active):
         action, state = policy.predict(observation, state=state, episode_start=start, deterministic=True)
         start = np.zeros(n, dtype=bool)
@@ -207,8 +211,17 @@ def _batch(policy: Any, env: Any, seeds: Sequence[int] | np.ndarray, progress: A
         tally.step(action, was_down, info["cost"], info["failed"], info["events"], active)
         ended = active & (np.asarray(terminated) | np.asarray(truncated))
         active &= ~ended
-        progress.update(int(ended.sum()))
+        steps += 1
+        now = n - active.sum() + (active.sum() * min(steps / horizon, 1.0) if horizon else 0.0)
+        progress.update(now - done)
+        done = now
     return tally.records()
+
+
+def _horizon(env: Any) -> int | None:
+    """The steps in an episode of ``env`` (an ``ea_gym`` vector environment's horizon), or None where it does not say."""
+    core = getattr(env.unwrapped, "core", None)
+    return getattr(getattr(core, "config", None), "horizon", None)
 
 
 def evaluate(
@@ -247,7 +260,7 @@ def evaluate(
     label = description
     batches = [seeds] if batch_size is None else [seeds[i : i + batch_size] for i in range(0, seeds.size, batch_size)]
     records: list[dict[str, Any]] = []
-    with tqdm(total=seeds.size, desc=label, disable=not progress, leave=False) as bar:
+    with tqdm(total=seeds.size, desc=label, disable=not progress, leave=False, bar_format=PROGRESS_FORMAT) as bar:
         for batch in batches:
             env = env_factory() if batch_size is None else env_factory(len(batch))
             try:

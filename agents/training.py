@@ -55,8 +55,10 @@ from agents.conventions import (
     pickled,
     refuse_pickle,
 )
+from agents.hyperparameters import check_hyperparameters
 from agents.imitation import clone
 from agents.initial_policy import initial_probabilities, start_from
+from agents.learning import check_steps, learn_steps
 from agents.observations import LearnerView, normalised_keys
 from agents.shaping import WearShaping
 from ea_gym.documents import read_document
@@ -212,21 +214,17 @@ def train(
         trust_pickle: let stable-baselines3 unpickle ``resume``'s files, which runs any code they hold;
             without it they are refused (``agents.conventions.UntrustedFileError``) before any work.
     """
-    if run.algo not in ALGORITHMS:
-        raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {run.algo!r}")
-    if run.timesteps <= 0 or run.n_envs <= 0:
-        raise ValueError(f"timesteps and n_envs must be positive, got {run.timesteps} and {run.n_envs}")
-    if run.dagger_rounds and run.teacher is None:
-        raise ValueError(f"dagger_rounds ({run.dagger_rounds}) needs a teacher to label the learner's steps")
+    _check_run(run)
     stored = None
     if resume is not None:
         resume = Path(resume)
         if not refuse_pickle(resume, trust_pickle):
             stored = read_agent(resume)
             _check_resumable(run, stored)
+    settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
+    check_hyperparameters(run.algo, settings, "hyperparameters")
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    settings = hyperparameters(run) if stored is None else {**stored.hyperparameters, **run.hyperparameters}
     tensorboard = str(out / "tensorboard") if importlib.util.find_spec("tensorboard") else None
     env = make_vec_env(run, run.n_envs, TRAINING_SEED + run.seed * run.n_envs, shaped=True)
     # validation episodes run 8 at a time on the batched env
@@ -249,22 +247,24 @@ def train(
             learner, view = cast(OnPolicyAlgorithm, model), cast(LearnerView, env.venv)  # PPO or A2C; make_vec_env wraps a LearnerView
             cloning = asdict(clone(learner, env, make_teacher(run, env), run.teacher_steps, restore=view.inverse, dagger_rounds=run.dagger_rounds))
             # the cloned policy is a candidate too: reinforcement learning must beat it to replace it
-            rewards, _ = evaluate_policy(model, evaluation_env, n_eval_episodes=run.eval_episodes, deterministic=True)
+            rewards = episode_rewards(model, evaluation_env, run.eval_episodes)
         cloning["validation_reward"] = float(np.mean(rewards))
         store(out / _checkpoint(run, 0))
-        candidates.append(Evaluation(0, cast(list[float], rewards), _checkpoint(run, 0)))
+        candidates.append(Evaluation(0, rewards, _checkpoint(run, 0)))
     # every evaluation checkpoints the policy it evaluated, with the normalisation statistics it saw
     evaluation = EvalCallback(evaluation_env, n_eval_episodes=run.eval_episodes, eval_freq=max(run.eval_every // run.n_envs, 1),
                               callback_after_eval=SaveAgent(lambda steps: store(out / _checkpoint(run, steps))), deterministic=True, verbose=0,
                               log_path=str(out / "evaluations"))  # with a log path it keeps every evaluation's rewards
     # the environments' numpy shares the process: a second torch thread fights its BLAS threads (20x slower here)
+    first_step = 0 if resume is None else model.num_timesteps  # a new model counts from 0
     with single_threaded_torch():
-        model.learn(total_timesteps=run.timesteps, callback=evaluation, progress_bar=progress_bar, reset_num_timesteps=resume is None)
+        learn_steps(model, run.timesteps, evaluation, progress_bar, reset_num_timesteps=resume is None)
         wall = time.perf_counter() - started
         store(out / LAST_DIRECTORY)
         candidates += _learned(run, model, env, evaluation)
     selected = _select(out, run, candidates)
-    summary = {"run": asdict(run), "wall_time_s": round(wall, 1), "steps_per_s": round(run.timesteps / wall, 1),
+    steps = model.num_timesteps - first_step
+    summary = {"run": asdict(run), "steps": steps, "wall_time_s": round(wall, 1), "steps_per_s": round(steps / wall, 1),
                "resumed_from": None if resume is None else str(resume), "cloning": cloning, "selected": selected,
                "last": {"steps": model.num_timesteps, "directory": LAST_DIRECTORY}, "evaluations": [c.to_dict() for c in candidates]}
     write_json(out / SUMMARY_FILE, summary)
@@ -296,9 +296,14 @@ def _learned(run: TrainingRun, model: BaseAlgorithm, env: VecNormalize, evaluati
                   for steps, rewards in zip(evaluation.evaluations_timesteps, evaluation.evaluations_results)]
     if model.num_timesteps not in evaluation.evaluations_timesteps:  # the last model is a candidate too
         sync_envs_normalization(env, evaluation.eval_env)
-        rewards, _ = evaluate_policy(model, evaluation.eval_env, n_eval_episodes=run.eval_episodes, deterministic=True)
-        candidates.append(Evaluation(model.num_timesteps, cast(list[float], rewards), LAST_DIRECTORY))
+        candidates.append(Evaluation(model.num_timesteps, episode_rewards(model, evaluation.eval_env, run.eval_episodes), LAST_DIRECTORY))
     return candidates
+
+
+def episode_rewards(model: BaseAlgorithm, env: VecEnv, episodes: int) -> list[float]:
+    """The deterministic policy's reward in each of ``episodes`` validation episodes (EvalCallback's evaluation)."""
+    rewards, _ = evaluate_policy(model, env, n_eval_episodes=episodes, deterministic=True, return_episode_rewards=True)
+    return [float(reward) for reward in cast(list[float], rewards)]
 
 
 def _checkpoint(run: TrainingRun, steps: int) -> str:
@@ -344,6 +349,17 @@ class SaveAgent(BaseCallback):
         if self.n_calls % self.every == 0:
             self.save(self.num_timesteps)
         return True
+
+
+def _check_run(run: TrainingRun) -> None:
+    """Refuse, before any work, a run that cannot train as asked."""
+    if run.algo not in ALGORITHMS:
+        raise ValueError(f"algo must be one of {sorted(ALGORITHMS)}, got {run.algo!r}")
+    if run.timesteps <= 0 or run.n_envs <= 0:
+        raise ValueError(f"timesteps and n_envs must be positive, got {run.timesteps} and {run.n_envs}")
+    check_steps(run.timesteps, run.n_envs)
+    if run.dagger_rounds and run.teacher is None:
+        raise ValueError(f"dagger_rounds ({run.dagger_rounds}) needs a teacher to label the learner's steps")
 
 
 def _check_resumable(run: TrainingRun, stored: AgentDescription) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import math
+import signal
 import sys
 from collections.abc import Iterable, Sequence
 from importlib.metadata import entry_points
@@ -20,6 +21,7 @@ from ea_gym.cli_args import (
     positive_float,
     sample_rate_option,
 )
+from ea_gym.interrupts import Terminated, interrupts_raised
 from ea_gym.models import SystemModel
 
 if TYPE_CHECKING:
@@ -148,10 +150,10 @@ def _model(args: argparse.Namespace) -> int:
     print("causality (the causal stroke sits at the end of the bond whose element receives the effort):")
     for bond, setter in zip(model.graph.bonds, space.causality.effort_setter):
         print(f"  {bond.tail} -> {bond.head}: stroke at {bond.other(setter)} ({setter} sets the effort)")
-    for name, signal in space.causality.inputs.items():
+    for name, quantity in space.causality.inputs.items():
         kind = elements[name].kind
         note = " (integral)" if kind.is_storage else ""
-        print(f"  {name} ({kind.value}): its input is its {signal}{note}")
+        print(f"  {name} ({kind.value}): its input is its {quantity}{note}")
     states = ", ".join(f"{name} ({'p' if elements[name].kind is Kind.I else 'q'})" for name in model.state_names)
     print(f"states: {states}")
     print("parameters:")
@@ -449,16 +451,42 @@ def error_line(error: BaseException) -> str:
     return " ".join([head, "; ".join(rest)]) if rest else head
 
 
+#: the arguments that name a command's input files, in the order an internal error names them
+INPUT_ARGUMENTS = {"scenario": "", "file": "", "source": "", "system": "--system ", "measurements": "--measurements ",
+                   "classifier": "--classifier ", "resume": "--resume ", "ppo": "--ppo ", "tuned": "--tuned "}
+
+
+def _inputs(args: argparse.Namespace) -> str:
+    """The command's input files as given on its command line."""
+    named = [f"{flag}{getattr(args, name)}" for name, flag in INPUT_ARGUMENTS.items() if getattr(args, name, None) not in (None, False)]
+    return ", ".join(named) or "its arguments"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command; a bad input is one line on stderr and exit code 2, an interruption (SIGINT, SIGTERM) exit code 130 or
+    143 once the outputs staged so far are removed; ``--debug`` lets the exception through, with its traceback."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    prefix = f"ea-gym {args.command}"
     try:
-        return args.run(args)
+        with interrupts_raised():
+            return int(args.run(args))
     except (ValueError, TypeError, OSError) as error:  # bad input (ScenarioError, ParameterError, ...): one line, exit 2
         if args.debug:
             raise
-        print(f"ea-gym {args.command}: error: {error_line(error)}", file=sys.stderr)
-        return 2
+        print(f"{prefix}: error: {error_line(error)}", file=sys.stderr)
+    except KeyboardInterrupt as interrupt:
+        if args.debug:
+            raise
+        terminated = isinstance(interrupt, Terminated)
+        print(f"{prefix}: {'terminated (SIGTERM)' if terminated else 'interrupted (SIGINT)'}; outputs in progress removed", file=sys.stderr)
+        return 128 + int(signal.SIGTERM if terminated else signal.SIGINT)
+    except Exception as error:  # a case no check caught: still one line, naming the inputs, and that it is the program's fault
+        if args.debug:
+            raise
+        print(f"{prefix}: error: internal error ({type(error).__name__}: {error_line(error)}) on {_inputs(args)}; "
+              "rerun with --debug for the traceback", file=sys.stderr)
+    return 2
 
 
 if __name__ == "__main__":

@@ -15,19 +15,24 @@ from typing import Any, SupportsFloat
 
 import numpy as np
 
+from ea_gym.interrupts import interruptions_held
+
 
 def write_atomic(path: str | os.PathLike[str], write: Callable[[str], object]) -> Path:
     """Call ``write(temporary_path)`` and move the result onto ``path`` in one rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
+    tmp = None
     try:
+        with interruptions_held():  # the temporary file known to the cleanup below before an interruption raises
+            fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=path.suffix, dir=path.parent)
+            os.close(fd)
         os.chmod(tmp, 0o666 & ~_umask())  # mkstemp creates 0600; results are for everyone to read
         write(tmp)
         os.replace(tmp, path)
     except BaseException:
-        Path(tmp).unlink(missing_ok=True)
+        if tmp is not None:
+            Path(tmp).unlink(missing_ok=True)
         raise
     return path
 
@@ -58,6 +63,17 @@ def check_output_directory(out: str | os.PathLike[str]) -> None:
             raise OutputError(f"cannot write {out}: {directory} is not writable")
 
 
+def refuse_links(directory: str | os.PathLike[str], purpose: str) -> None:
+    """Refuse a directory holding a symbolic link at any depth (ValueError naming the first found): a run that reads
+    or rewrites the directory's files ``purpose`` must find them inside it, not write through a link or drop what it
+    points to."""
+    for root, directories, files in os.walk(directory):
+        for name in sorted(directories + files):
+            if os.path.islink(os.path.join(root, name)):
+                raise ValueError(f"{os.path.join(root, name)} is a symbolic link; expected {directory} to hold its own files "
+                                  f"{purpose}, no links")
+
+
 def _missing_parents(directory: Path) -> list[Path]:
     """The ancestors of ``directory`` (itself included) that do not exist yet, outermost first."""
     missing = []
@@ -83,27 +99,39 @@ def staged_output(out: str | os.PathLike[str], last: str | None = None, carry_ex
 
     Raises:
         OutputError: ``out`` is an existing file, lies under a file, or its parent cannot be written.
+        ValueError: with ``carry_existing``, ``out`` holds a symbolic link (``refuse_links``).
     """
     out = Path(out)
     check_output_directory(out)
+    if carry_existing and out.is_dir():
+        refuse_links(out, "to continue it")
     beside = Path(os.path.abspath(out))  # "." and "a/.." name a directory, not a parent to write beside it in
     created = _missing_parents(beside.parent)
+    staging = None
+    try:
+        with interruptions_held():  # the staging directory known to the cleanup below before an interruption raises
+            staging = _staging_beside(beside, out)
+        if carry_existing and out.is_dir():
+            shutil.copytree(out, staging, symlinks=True, dirs_exist_ok=True)
+        yield staging
+        with interruptions_held():  # the outputs move in together, or (an error) not at all
+            _move_in(staging, out, last)
+    except BaseException:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
+        _remove_created(created)
+        raise
+
+
+def _staging_beside(beside: Path, out: Path) -> Path:
+    """A new, empty staging directory beside ``beside`` (the absolute ``out``); OutputError when it cannot be made."""
     try:
         beside.parent.mkdir(parents=True, exist_ok=True)
         staging = Path(tempfile.mkdtemp(prefix=f".{beside.name}.", dir=beside.parent))
         staging.chmod(0o777 & ~_umask())  # mkdtemp creates 0700; a new out is renamed from it, for everyone to read
     except OSError as error:
-        _remove_created(created)
         raise OutputError(f"cannot write {out}: {error.strerror or error}") from None
-    try:
-        if carry_existing and out.is_dir():
-            shutil.copytree(out, staging, symlinks=True, dirs_exist_ok=True)
-        yield staging
-        _move_in(staging, out, last)
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        _remove_created(created)
-        raise
+    return staging
 
 
 def _move_in(staging: Path, out: Path, last: str | None) -> None:
@@ -115,7 +143,9 @@ def _move_in(staging: Path, out: Path, last: str | None) -> None:
     entries = sorted(staging.iterdir(), key=lambda path: path.name == last)
     for path in entries:
         target = out / path.name
-        if target.is_dir() and path.is_dir():
+        if target.is_symlink():  # the output replaces the link; what it points to is not written
+            target.unlink()
+        elif target.is_dir() and path.is_dir():
             shutil.rmtree(target)
         os.replace(path, target)
     staging.rmdir()

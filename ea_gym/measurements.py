@@ -36,7 +36,7 @@ import io
 import math
 import os
 import re
-from collections.abc import Collection, Iterable, Mapping
+from collections.abc import Collection, Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -145,13 +145,14 @@ def read_measurements(
     """
     path = Path(path)
     raw = _read_bytes(path, max_bytes)
-    lines = raw.count(b"\n") + (not raw.endswith(b"\n"))  # at least the header and the samples
+    # at least the header and the samples: the csv module ends a line at LF, CR LF or a CR alone
+    lines = raw.count(b"\n") + raw.count(b"\r") - raw.count(b"\r\n") + (not raw.endswith((b"\n", b"\r")))
     if lines - 1 > max_rows:
         raise MeasurementError(f"{path}: {lines - 1} lines after the header, more than the {max_rows} samples read; split the record")
     text = raw.decode("utf-8", errors="replace")
-    head = text.partition("\n")[0]
+    head = re.split(r"\r\n|\r|\n", text, maxsplit=1)[0]
     delimiter = ";" if head.count(";") > head.count(",") else ","
-    rows = csv.reader(io.StringIO(text, newline=""), delimiter=delimiter)
+    rows = _rows(path, csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
     header = next(rows, None)
     if header is None:
         raise MeasurementError(f"{path}: empty file; expected a header row with columns {', '.join(measurement_columns(model))}")
@@ -187,6 +188,17 @@ def _read_bytes(path: Path, max_bytes: int) -> bytes:
         read = f"more than the {max_bytes} bytes" if error.size is None else f"{error.size} bytes, more than the {max_bytes}"
         raise MeasurementError(f"{path}: {read} read; split the record") from None
     return raw.removeprefix(_BOM)
+
+
+def _rows(path: Path, reader: Iterator[list[str]]) -> Iterator[list[str]]:
+    """The CSV's rows; one the csv module cannot split (a cell past its size limit, a stray quote) refused at its line."""
+    line = 1  # the line being read
+    try:
+        for row in reader:
+            yield row
+            line += 1
+    except csv.Error as error:
+        raise MeasurementError(f"{path}: line {line}: {error}; expected cells of plain decimal numbers") from None
 
 
 def _name_and_unit(cell: str) -> tuple[str, str | None]:

@@ -50,6 +50,9 @@ __all__ = ["MODEL_FILE_SUFFIXES", "ModelFileError", "is_model_file", "load_model
 
 MODEL_FILE_SUFFIXES = (".yaml", ".yml", ".json")
 NAME_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
+#: an element's value and limits (SI): the product or quotient of any ten stays a normal float (m = k = 1e308 gave a state
+#: matrix whose eigenvalues came out 0, the model "resolved" at any rate); physical parts lie well inside (1 pF, 1e12 N/m)
+VALUE_RANGE = (1e-30, 1e30)
 _FIELDS = ("name", "description", "elements", "bonds", "load")
 _C_FORMS = {"stiffness": CForm.STIFFNESS, "compliance": CForm.CAPACITANCE}
 _KINDS = tuple(kind.value for kind in Kind)
@@ -262,8 +265,12 @@ def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _P
     if "value" not in spec:
         problems.add(f"{where}.value", f"missing: a {checked.kind.value} element needs a value > 0 (SI)")
         return None
+    low, high = VALUE_RANGE
     if not (_number(value) and value > 0):
         problems.add(f"{where}.value", f"expected a finite number > 0 (SI), got {_describe(value)}")
+        return None
+    if not low <= value <= high:
+        problems.add(f"{where}.value", f"{value:g} is outside [{low:g}, {high:g}], the values a model's arithmetic holds (SI)")
         return None
     checked.value = float(value)
     if checked.kind is Kind.C:
@@ -280,6 +287,8 @@ def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _P
             problems.add(f"{where}.limits", f"expected [lower, upper], two finite numbers > 0, got {got}")
         elif not limits[0] <= value <= limits[1] or not limits[0] < limits[1]:
             problems.add(f"{where}.limits", f"{limits} must satisfy lower < upper and contain the value {value}")
+        elif not (low <= limits[0] and limits[1] <= high):
+            problems.add(f"{where}.limits", f"{limits} must lie inside [{low:g}, {high:g}], the values a model's arithmetic holds (SI)")
         else:
             checked.limits = (float(limits[0]), float(limits[1]))
     return checked

@@ -351,3 +351,21 @@ def test_policies_run_under_sb3_evaluate_policy_on_a_vec_env():
         assert lengths == [20, 20] and all(r <= 0 for r in rewards)
     periodic_rewards, _ = evaluate_policy(Periodic(venv, 5.0), venv, n_eval_episodes=2, return_episode_rewards=True, warn=False)
     assert max(periodic_rewards) <= -40.0  # it did replace something within 20 steps
+
+
+def test_a_batched_evaluations_progress_bar_moves_with_every_step(monkeypatch):
+    """The batch's episodes all end at the horizon together: counting ended episodes alone held the bar at 0 until the end."""
+    import tqdm.auto
+
+    shown: list[float] = []
+
+    class Recorded(tqdm.auto.tqdm):
+        def update(self, n=1):
+            super().update(n)
+            shown.append(self.n)
+
+    monkeypatch.setattr(tqdm.auto, "tqdm", Recorded)
+    vector = lambda n: gym.make_vec("ea_gym/SpringMassDamper-v0", num_envs=n, vectorization_mode="vector_entry_point",  # noqa: E731
+                                    obs_mode="oracle", horizon=10, continue_after_failure=True)
+    evaluate(RunToFailure(ACTIONS), vector, [0, 1, 2, 3], progress=True, batch_size=4)
+    assert shown == pytest.approx([0.4 * step for step in range(1, 11)])

@@ -10,6 +10,7 @@ import errno
 import json
 import math
 import os
+import shutil
 import subprocess
 import sys
 from collections.abc import Callable
@@ -144,6 +145,59 @@ def _slow_measurements(tmp: Path) -> list[str]:
     return ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--out", str(tmp / "out")]
 
 
+def _measurements_case(content: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        csv = _write(tmp / "data.csv", content)
+        return ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--out", str(tmp / "out")]
+
+    return setup
+
+
+HUGE_MODEL = NO_LIMITS_MODEL.replace("value: 10.0, unit: kg", "value: 1.0e+308, unit: kg").replace(
+    "value: 100.0, unit: N/m", "value: 1.0e+308, unit: N/m")
+
+#: a committed agent directory, copied and edited by the agent cases
+SHIPPED_AGENT = Path(__file__).parents[1] / "agents" / "data" / "ppo_oracle"
+
+
+def _agent(tmp: Path, edit: Callable[[dict[str, Any]], object] = lambda data: None) -> Path:
+    """A copy of a committed agent in ``tmp/agent``, its agent.json edited by ``edit``."""
+    agent = tmp / "agent"
+    shutil.copytree(SHIPPED_AGENT, agent)
+    data = json.loads((agent / "agent.json").read_text())
+    edit(data)
+    _write(agent / "agent.json", data)
+    return agent
+
+
+def _resume_edited(edit: Callable[[dict[str, Any]], object]) -> Setup:
+    return lambda tmp: ["train", "--resume", str(_agent(tmp, edit)), "--out", str(tmp / "out")]
+
+
+def _benchmark_edited(edit: Callable[[dict[str, Any]], object]) -> Setup:
+    return lambda tmp: ["benchmark", "--ppo", str(_agent(tmp, edit)), "--episodes", "1", "--out", str(tmp / "out")]
+
+
+def _resume_in_place_with_a_link(link: str) -> Setup:
+    """train --resume R --out R, ``R/<link>`` a symbolic link to a directory outside R."""
+
+    def setup(tmp: Path) -> list[str]:
+        agent = _agent(tmp)
+        (agent / link).parent.mkdir(parents=True, exist_ok=True)
+        (tmp / "elsewhere").mkdir()
+        (agent / link).symlink_to(tmp / "elsewhere", target_is_directory=True)
+        return ["train", "--resume", str(agent), "--out", str(agent)]
+
+    return setup
+
+
+def _agent_json_linked_to_dev_zero(tmp: Path) -> list[str]:
+    agent = _agent(tmp)
+    (agent / "agent.json").unlink()
+    (agent / "agent.json").symlink_to("/dev/zero")
+    return ["benchmark", "--ppo", str(agent), "--episodes", "1", "--out", str(tmp / "out")]
+
+
 CLI_CASES: list[tuple[str, Setup, str]] = [
     ("duration 1e9", _scenario_case(scenario(duration=1e9)), "at most 1000000 per run"),
     ("sample_rate 1e7", _scenario_case(scenario(sample_rate=1e7)), "at most 1000000 per run"),
@@ -199,6 +253,25 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
     ("--classifier holding a pickle payload", _classifier(lambda tmp: _evil(tmp) / "blob"), "blob: not an isolation network"),
     ("train --env horizon=true", lambda tmp: ["train", "--out", str(tmp / "out"), "--env", "horizon=true"], "horizon must be an int in"),
     ("--window abc", lambda tmp: ["simulate", "x.json", "--window", "abc"], "argument --window: invalid positive_float value: 'abc'"),
+    ("a CSV with CR-only line endings", _measurements_case("t,F,m,k\r0,10,0,0\r0.01,x,0,0\r"),
+     "line 3, column 'F': 'x' where a number is expected"),
+    ("a 200,000-character CSV cell", _measurements_case("t,F,m,k\n0," + "1" * 200_000 + ",0,0\n"),
+     "data.csv: line 2: field larger than field limit (131072)"),
+    ("m = k = 1e308 in a model file", _model_case(HUGE_MODEL), "elements.m.value: 1e+308 is outside [1e-30, 1e+30]"),
+    ("agent.json net_arch [-1]", _benchmark_edited(lambda d: d["policy"]["kwargs"].update(net_arch=[-1])),
+     "policy.kwargs.net_arch must be a list of layer widths (integers >= 1)"),
+    ('agent.json learning_rate "fast"', _resume_edited(lambda d: d["hyperparameters"].update(learning_rate="fast")),
+     "hyperparameters.learning_rate must be a finite number > 0, got 'fast'"),
+    ("agent.json _init_setup_model false", _resume_edited(lambda d: d["hyperparameters"].update(_init_setup_model=False)),
+     "hyperparameters._init_setup_model is not a hyperparameter ppo takes from a file"),
+    ("agent.json clip_obs -1", _benchmark_edited(lambda d: d["normalization"].update(clip_obs=-1)),
+     "normalization.clip_obs must be a finite number > 0, got -1"),
+    ("agent.json num_timesteps -5", _resume_edited(lambda d: d.update(num_timesteps=-5)), "num_timesteps must be an integer >= 0"),
+    ("train --resume R --out R, R/checkpoints a link", _resume_in_place_with_a_link("checkpoints"),
+     "agent/checkpoints is a symbolic link; expected"),
+    ("train --resume R --out R, a checkpoint a link", _resume_in_place_with_a_link("checkpoints/ppo_1000_steps"),
+     "agent/checkpoints/ppo_1000_steps is a symbolic link; expected"),
+    ("benchmark --ppo an agent.json linked to /dev/zero", _agent_json_linked_to_dev_zero, "agent/agent.json is a symbolic link"),
 ]
 
 
@@ -230,6 +303,26 @@ def test_debug_shows_the_traceback(tmp_path: Path) -> None:
     bad = _write(tmp_path / "bad.json", scenario(duration=1e9))
     with pytest.raises(ValueError, match="at most 1000000 per run"):
         main(["--debug", "simulate", str(bad), "--out", str(tmp_path / "out")])
+
+
+def test_an_internal_error_is_one_line_naming_the_inputs(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                         monkeypatch: pytest.MonkeyPatch) -> None:
+    """An exception no check foresaw (here an IndexError while reading the scenario) says it is the program's, names the
+    inputs and writes nothing; with --debug it comes through, traceback and all."""
+    import ea_gym.scenario
+
+    def broken(*args: Any, **kwargs: Any) -> None:
+        raise IndexError("index 0 is out of bounds")
+
+    monkeypatch.setattr(ea_gym.scenario, "load_scenario", broken)
+    good = _write(tmp_path / "ok.json", GOOD)
+    argv = ["simulate", str(good), "--system", "spring_mass_damper", "--out", str(tmp_path / "out")]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == (f"ea-gym simulate: error: internal error (IndexError: index 0 is out of bounds) on {good}, "
+                                       "--system spring_mass_damper; rerun with --debug for the traceback\n")
+    assert _snapshot(tmp_path) == {"ok.json"}
+    with pytest.raises(IndexError):
+        main(["--debug", *argv])
 
 
 def _refuse_writes_in(directory: Path, monkeypatch: pytest.MonkeyPatch, access_says_writable: bool) -> None:
@@ -307,6 +400,24 @@ def test_outputs_move_into_an_existing_directory_together(tmp_path: Path) -> Non
     assert main(["simulate", str(_write(tmp_path / "ok.json", GOOD)), "--out", str(out)]) == 0
     assert sorted(path.name for path in out.iterdir()) == ["energy.json", "energy.png", "notes.txt"]
     assert [path.name for path in tmp_path.iterdir() if path.name.startswith(".")] == []  # no staging left
+
+
+def test_a_link_in_an_existing_out_is_replaced_not_written_through(tmp_path: Path) -> None:
+    """An output file and an output directory whose names are links in --out (to a file, to a directory elsewhere): the
+    outputs take the links' places, the links' targets are left as they were."""
+    out, elsewhere = tmp_path / "out", tmp_path / "elsewhere"
+    out.mkdir()
+    elsewhere.mkdir()
+    _write(elsewhere / "kept.txt", "kept")
+    (out / "report.md").symlink_to(elsewhere / "kept.txt")
+    (out / "figures").symlink_to(elsewhere, target_is_directory=True)
+    with ea_gym.files.staged_output(out) as staging:
+        _write(staging / "report.md", "new report")
+        (staging / "figures").mkdir()
+        _write(staging / "figures" / "a.png", "new figure")
+    assert not (out / "report.md").is_symlink() and (out / "report.md").read_text() == "new report"
+    assert not (out / "figures").is_symlink() and _snapshot(out / "figures") == {"a.png"}
+    assert _snapshot(elsewhere) == {"kept.txt"} and (elsewhere / "kept.txt").read_text() == "kept"
 
 
 def test_out_at_the_working_directory_is_written_in_place(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -8,7 +8,7 @@
 - The package is built in floors, and no module imports from a floor above its own (imports inside
   functions and under ``if TYPE_CHECKING:`` count too; a module may import from its own floor):
 
-  0. foundation: ``numerics``, ``threads``, ``files``, ``pyplot``, ``documents``, ``metrics``, ``_kernels``
+  0. foundation: ``numerics``, ``threads``, ``interrupts``, ``files``, ``pyplot``, ``documents``, ``metrics``, ``_kernels``
   1. the model and what it produces: ``bondgraph``, ``models``, ``model_files``, ``energy``, ``sensors``,
      ``loads``, ``degradation``, ``scenario``, ``measurements``, ``plant``, ``cache``
   2. ``diagnosis`` (the EA monitor, features, the isolation network and its training)
@@ -93,7 +93,7 @@ def test_no_other_modules_private_names(path: Path) -> None:
 
 
 FLOORS: dict[str, int] = {
-    **dict.fromkeys(("numerics", "threads", "files", "pyplot", "documents", "metrics", "_kernels"), 0),
+    **dict.fromkeys(("numerics", "threads", "interrupts", "files", "pyplot", "documents", "metrics", "_kernels"), 0),
     **dict.fromkeys(("bondgraph", "models", "model_files", "energy", "sensors", "loads", "degradation", "scenario", "measurements",
                      "plant", "cache"), 1),
     "diagnosis": 2,

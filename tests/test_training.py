@@ -69,15 +69,15 @@ def test_train_command_rejects_bad_arguments(capsys):
 def test_the_selected_model_is_the_best_evaluation_and_the_last_model_is_kept(trained):
     out, summary = trained
     evaluations = summary["evaluations"]
-    # the evaluations at 192 and 384 steps, then the last model (PPO's 4 rollouts of 128 steps), not evaluated on the way
+    # the evaluations at 192 and 384 steps, then the last model (3 rollouts of 4 x 32 steps, then one of 4 x 16), not evaluated on the way
     assert [(e["steps"], e["directory"]) for e in evaluations] == [
-        (192, "checkpoints/ppo_192_steps"), (384, "checkpoints/ppo_384_steps"), (512, "last")]
+        (192, "checkpoints/ppo_192_steps"), (384, "checkpoints/ppo_384_steps"), (448, "last")]
     best = max(evaluations, key=lambda e: e["mean_reward"])
     assert summary["selected"]["steps"] == best["steps"] and summary["selected"]["validation_reward"] == best["mean_reward"]
-    assert summary["last"] == {"steps": 512, "directory": "last"}
+    assert summary["last"] == {"steps": 448, "directory": "last"} and summary["steps"] == 448
     for name in ("agent.json", "policy.safetensors", "optimizer.safetensors"):
         assert (out / name).read_bytes() == (out / best["directory"] / name).read_bytes()
-    assert load_policy(out).num_timesteps == best["steps"] and load_policy(out / "last").num_timesteps == 512
+    assert load_policy(out).num_timesteps == best["steps"] and load_policy(out / "last").num_timesteps == 448
     # each evaluation's score is the evaluated checkpoint's: re-evaluated, its validation episodes give the same rewards
     from stable_baselines3.common.evaluation import evaluate_policy
 
@@ -209,8 +209,7 @@ def test_a_failed_train_command_leaves_out_as_it_was(tmp_path, monkeypatch, caps
     monkeypatch.setattr(agents.training, "write_json", fail)  # training.json, the run's last file
     done = str(tmp_path / "done")
     for argv in ([*TINY_TRAIN, "--out", str(tmp_path / "new" / "out")], [*TINY_TRAIN, "--resume", done, "--out", done]):
-        with pytest.raises(type(failure)):
-            main(argv)
+        assert main(argv) == (130 if isinstance(failure, KeyboardInterrupt) else 2)
         assert sorted(path.name for path in tmp_path.iterdir()) == ["done"]
         assert _files(tmp_path / "done") == before
 
@@ -241,3 +240,62 @@ def test_the_default_rollout_of_whole_episodes_makes_a_model_without_a_minibatch
     run = TrainingRun(obs_mode="oracle", n_envs=2, env_kwargs={"horizon": 50})  # rollouts of 2 x 50 steps, minibatches of 256
     model, _ = make_model(run, make_vec_env(run, run.n_envs, 0, shaped=True), hyperparameters(run), None, None, None)
     assert model.n_steps == 50 and not [w for w in recwarn if "mini-batch" in str(w.message)]
+
+
+def test_every_evaluation_records_the_spread_of_its_episodes_rewards(tmp_path):
+    """The last model's evaluation, made outside the callback, too: its std is its episodes', not 0 by construction."""
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    from agents.training import normalize
+
+    run = TrainingRun(algo="a2c", timesteps=32, obs_mode="oracle", n_envs=2, eval_every=10_000, eval_episodes=3,
+                      env_kwargs={"horizon": 200}, hyperparameters={"n_steps": 16})
+    [last] = train(run, tmp_path, progress_bar=False)["evaluations"]
+    policy = load_policy(tmp_path / "last")
+    env = normalize(make_vec_env(run, 3, VALIDATION_SEED, kind="batched"), training=False)
+    policy.normalization.restore(env)
+    rewards, _ = evaluate_policy(policy.policy, env, n_eval_episodes=3, deterministic=True, return_episode_rewards=True)
+    assert np.std(rewards) > 0  # failures on some validation seeds, not on others
+    assert last["directory"] == "last" and last["std_reward"] == pytest.approx(np.std(rewards), abs=1e-3)
+
+
+def test_dqn_trains_exactly_the_steps_asked(tmp_path):
+    """DQN collects 4 vector steps (16 environment steps) between updates: 100 steps stop within a collection."""
+    run = TrainingRun(algo="dqn", timesteps=100, obs_mode="oracle", n_envs=4, eval_every=10_000, eval_episodes=1, env_kwargs={"horizon": 50},
+                      hyperparameters={"learning_starts": 16, "buffer_size": 1_000, "batch_size": 16, "train_freq": 4})
+    summary = train(run, tmp_path, progress_bar=False)
+    assert summary["steps"] == summary["last"]["steps"] == 100 and load_policy(tmp_path / "last").num_timesteps == 100
+
+
+def test_a_step_count_the_environments_cannot_make_is_refused(tmp_path):
+    with pytest.raises(ValueError, match=r"timesteps: 450 is not a multiple of n_envs \(4\), .*expected e.g. 448 or 452"):
+        train(TrainingRun(timesteps=450, n_envs=4), tmp_path, progress_bar=False)
+    assert not any(tmp_path.iterdir())
+
+
+def test_training_leaves_nothing_in_the_temporary_directory(tmp_path, monkeypatch, capsys):
+    """stable-baselines3's logger, left to itself, makes an empty SB3-<time> directory there on every run."""
+    import tempfile
+
+    private = tmp_path / "tmp"
+    private.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(private))
+    assert main([*TINY_TRAIN, "--out", str(tmp_path / "out")]) == 0, capsys.readouterr().err
+    assert "trained a2c for 64 steps" in capsys.readouterr().out
+    assert list(private.iterdir()) == []
+
+
+@pytest.mark.parametrize("algo", ["ppo", "a2c", "dqn"])
+def test_the_default_hyperparameters_pass_the_checks_agent_files_get(algo):
+    """And every checked name is one the algorithm's constructor takes (a misspelt one would never be settable)."""
+    import inspect
+
+    from agents.agent_files import ALGORITHMS
+    from agents.hyperparameters import HYPERPARAMETERS, check_hyperparameters
+    from agents.training import default_hyperparameters
+
+    for cloned in (False, True):
+        check_hyperparameters(algo, default_hyperparameters(algo, 16, cloned=cloned), "hyperparameters")
+    assert set(HYPERPARAMETERS[algo]) <= set(inspect.signature(ALGORITHMS[algo]).parameters)
+    with pytest.raises(ValueError, match=r"^hyperparameters.gamma must be a finite number in \[0, 1\], got 1.5$"):
+        check_hyperparameters(algo, {"gamma": 1.5}, "hyperparameters")

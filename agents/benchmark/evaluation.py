@@ -20,7 +20,7 @@ from agents.benchmark.tuning import RuleBuilder
 from agents.conventions import AGENT_FILES, SUMMARY_FILE, pickled
 from agents.evaluation import EpisodeStats, mean_ci95
 from agents.policies import ActionMap, RunToFailure
-from ea_gym.files import finite_or_none, json_ready
+from ea_gym.files import finite_or_none, json_ready, refuse_links
 
 __all__ = ["EVALUATION_ORDER", "paired", "agent_missing", "plan_policies", "evaluate_policies", "policy_rows", "value_of_information"]
 
@@ -41,12 +41,14 @@ def paired(a: EpisodeStats, b: EpisodeStats) -> dict[str, Any]:
 
 
 def agent_missing(directory: Path | None) -> str | None:
-    """Why a trained agent's directory cannot be loaded (None if it can)."""
+    """Why a trained agent's directory cannot be loaded (None if it can); ValueError for one holding a symbolic link,
+    which is refused rather than skipped."""
     if directory is None:
         return "no PPO directory given"
     directory = Path(directory)
     if not directory.is_dir():
         return f"no trained policy at {display_path(directory)} (no such directory)"
+    refuse_links(directory, "as an agent")
     missing = [name for name in AGENT_FILES if not (directory / name).is_file()]
     if missing and pickled(directory) is None:  # stable-baselines3's files: loaded, or refused, by load_policy
         return f"no trained policy at {display_path(directory)} (missing {', '.join(missing)})"
