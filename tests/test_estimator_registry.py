@@ -99,7 +99,7 @@ def test_a_registered_estimator_runs_in_the_environment_and_its_estimates_reach_
 
 def test_an_unknown_estimator_is_refused_naming_the_registered_ones():
     assert {"ea_inversion", "fixed_guess", "tracking"} <= set(registered_estimators())
-    with pytest.raises(ValueError, match=r"no estimator named 'kalman' is registered; registered: ea_inversion, fixed_guess, tracking"):
+    with pytest.raises(ValueError, match=r"no estimator named 'kalman' is registered; registered: ea_inversion, fixed_guess, joint, tracking"):
         build_chain(MODEL, PHMConfig(estimator_kind="kalman"), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
     with pytest.raises(ValueError, match="already registered"):
         register_estimator("tracking")(fixed_guess_stages)

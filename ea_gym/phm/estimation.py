@@ -47,6 +47,8 @@ class ParameterEstimates:
         covariance: the covariance of each value and its drift (unit^2/s), NaN where none, (N, D).
         estimated: which hypotheses were updated at this step, (N, D).
         time: the time each value describes (s), (N, D).
+        degrading: each parameter's probability of drifting (of wearing), (N, D), from an estimator that
+            estimates every parameter at once (the "joint" filter); None from the others.
     """
 
     value: np.ndarray
@@ -57,6 +59,7 @@ class ParameterEstimates:
     log_evidence: np.ndarray
     estimated: np.ndarray
     time: np.ndarray
+    degrading: np.ndarray | None = None
 
 
 class ParameterEstimator(Protocol):
