@@ -58,6 +58,14 @@ DIFFERENCE_STEP = 1e-5
 PROBABILITY_FLOOR = 1e-12
 
 
+def degrading_probability(drift: np.ndarray, variance: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """P(|drift| > rate) under N(drift, variance), elementwise (drift and rate in unit/s, variance in unit^2/s^2)."""
+    from scipy.special import ndtr  # imported when first needed: scipy.special takes a few tenths of a second
+
+    std = np.sqrt(np.maximum(variance, np.finfo(float).tiny))
+    return np.asarray(ndtr((drift - rate) / std) + ndtr((-drift - rate) / std))
+
+
 class JointFilter:
     """Estimates every degradable parameter of N systems at once, with its drift (see the module docstring).
 
@@ -297,12 +305,8 @@ class JointFilter:
 
     def degrading(self) -> np.ndarray:
         """Each parameter's probability of degrading, (N, D): P(|drift| > ``degrading_rate`` x its safe span)."""
-        from scipy.special import ndtr  # imported when first needed: scipy.special takes a few tenths of a second
-
         drifts = np.arange(self.nx + len(self.degradable), self.x.shape[1])
-        drift, std = self.x[:, self.drift], np.sqrt(np.maximum(self.P[:, drifts, drifts], 0.0))
-        std = np.maximum(std, np.finfo(float).tiny)
-        return np.asarray(ndtr((drift - self.rate) / std) + ndtr((-drift - self.rate) / std))
+        return degrading_probability(self.x[:, self.drift], self.P[:, drifts, drifts], self.rate)
 
     def estimates(self, t: np.ndarray) -> ParameterEstimates:
         """The filters' current estimates at times ``t`` (N,), with each parameter's degrading probability and
