@@ -9,8 +9,9 @@ load), evaluated once per step at the step's first estimate (the anchor) and at 
 step, dM_j the central difference, so the Jacobian's parameter columns dM_j [x; w] come with it. The
 measurement model is ``Sensors(model)``'s: an I element's flow p / I (nonlinear where I is estimated,
 its H row carries -p / I^2), a C element's displacement q. Each sample's update is the filterpy form
-(y = z - h(x), S = H P H^T + R, K = P H^T S^-1); its innovations y and their covariances S are kept for
-the step (``innovation``, ``innovation_covariance``: a model-fit test reads them).
+(y = z - h(x), S = H P H^T + R, K = P H^T S^-1; compiled, ``ea_gym._kernels.joint``, beside its numpy
+reference); its innovations y and their covariances S are kept for the step (``innovation``,
+``innovation_covariance``: a model-fit test reads them).
 
 Why an EKF and not an unscented filter (ProgPy's ``UnscentedKalmanFilter``, the comparison's anchor): the
 model is linear in the states and smooth in the parameters, the parameters move by a fraction of a per
@@ -38,6 +39,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from ea_gym._kernels.joint import joint_samples
 from ea_gym._kernels.tracking import VARIANCE_FLOOR
 from ea_gym.bondgraph.simulation import hermite_coefficients
 from ea_gym.diagnosis.database import classes_of
@@ -122,6 +124,9 @@ class JointFilter:
         self.momenta = tuple(
             (i, degradable_columns.index(p) if p in degradable_columns else -1, float(self.base[p])) for i, p in Sensors(model).momenta
         )
+        # the same as arrays, for the compiled samples
+        self._momenta = np.array([(i, j) for i, j, _ in self.momenta], dtype=np.int64).reshape(-1, 2)
+        self._inertia = np.array([value for _, _, value in self.momenta], dtype=float)
         size = self.nx + 2 * d
         self.x = np.zeros((n_systems, size))
         self.P = np.zeros((n_systems, size, size))
@@ -182,9 +187,10 @@ class JointFilter:
         Q = self._process_noise(variance, drift_time)
         self.innovation = np.empty((self.n, samples, self.nx))
         self.innovation_covariance = np.empty((self.n, samples, self.nx, self.nx))
-        for k in range(samples):
-            self._predict(M0, dM, anchor, w[:, k], drift_time, Q)
-            self.innovation[:, k], self.innovation_covariance[:, k] = self._correct(measured[:, :, k + 1], variance)
+        joint_samples(
+            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, np.ascontiguousarray(measured), variance, self._momenta, self._inertia,
+            self.lo, self.hi, self.x, self.P, self.innovation, self.innovation_covariance,
+        )
         return self.estimates(t)
 
     def _checked(self, signals: StepSignals) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -262,46 +268,6 @@ class JointFilter:
             axis=1,
         )
         return diagonal[:, :, None] * np.eye(diagonal.shape[1])
-
-    def _predict(self, M0: np.ndarray, dM: np.ndarray, anchor: np.ndarray, w: np.ndarray, drift_time: np.ndarray, Q: np.ndarray) -> None:
-        """One sample's prediction of every system: x = M(theta) [x; w], theta += drift_time drift, P = F P F^T + Q
-        (``w`` (N, 4 or 5) the load's Taylor coefficients over the sample)."""
-        nx, x = self.nx, self.x
-        theta = x[:, self.theta]
-        M = M0 + np.einsum("nd,ndij->nij", theta - anchor, dM)
-        states = x[:, :nx].copy()
-        F = np.repeat(np.eye(x.shape[1])[None], self.n, axis=0)
-        F[:, :nx, :nx] = M[:, :, :nx]
-        F[:, :nx, self.theta] = np.einsum("ndij,nj->nid", dM[..., :nx], states) + np.einsum("ndij,nj->nid", dM[..., nx:], w)
-        d = len(self.degradable)
-        F[:, np.arange(nx, nx + d), np.arange(nx + d, nx + 2 * d)] = drift_time[:, None]
-        x[:, :nx] = np.einsum("nij,nj->ni", M[:, :, :nx], states) + np.einsum("nij,nj->ni", M[:, :, nx:], w)
-        x[:, self.theta] += drift_time[:, None] * x[:, self.drift]
-        self.P = F @ self.P @ F.transpose(0, 2, 1) + Q
-
-    def _correct(self, z: np.ndarray, variance: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """One sample's update of every system from its measurements ``z`` (N, nx) of noise ``variance`` (N, nx);
-        returns the innovations y (N, nx) and their covariances S (N, nx, nx)."""
-        nx, x, P = self.nx, self.x, self.P
-        inverse = np.ones((self.n, nx))  # what turns each signal back into its energy variable
-        for i, j, value in self.momenta:
-            inverse[:, i] = x[:, nx + j] if j >= 0 else value
-        predicted = x[:, :nx] / inverse
-        H = np.zeros((self.n, nx, x.shape[1]))
-        H[:, np.arange(nx), np.arange(nx)] = 1.0 / inverse
-        for i, j, _ in self.momenta:
-            if j >= 0:  # the flow p / I under an estimated inertia
-                H[:, i, nx + j] = -predicted[:, i] / inverse[:, i]
-        y = z - predicted
-        PHt = P @ H.transpose(0, 2, 1)
-        S = H @ PHt
-        S[:, np.arange(nx), np.arange(nx)] += variance
-        K = np.linalg.solve(S, PHt.transpose(0, 2, 1)).transpose(0, 2, 1)
-        x += np.einsum("nij,nj->ni", K, y)
-        P = P - K @ S @ K.transpose(0, 2, 1)
-        self.P = 0.5 * (P + P.transpose(0, 2, 1))
-        x[:, self.theta] = np.clip(x[:, self.theta], self.lo, self.hi)
-        return y, S
 
     def degrading(self) -> np.ndarray:
         """Each parameter's probability of degrading, (N, D): P(|drift| > ``degrading_rate`` x its safe span)."""
