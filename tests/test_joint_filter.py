@@ -14,15 +14,19 @@ the others).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
+import gymnasium as gym
 import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
+import ea_gym  # noqa: F401  (registers the environments)
 from ea_gym.diagnosis.training import load_shipped_classifier
 from ea_gym.models import spring_mass_damper
 from ea_gym.phm import ChainTiming, JointFilter, JointFilterConfig, PHMConfig, StepSignals, build_chain, run_scenario
 from ea_gym.phm.joint import JOINT_WEIGHTS
+from ea_gym.reporting import write_phm_outputs
 from ea_gym.scenario import load_scenario
 
 MODEL = spring_mass_damper()
@@ -187,8 +191,9 @@ def test_settings_are_checked() -> None:
         JointFilter(MODEL, -1.0, NOISE)
 
 
-def test_the_joint_estimator_runs_in_the_chain_on_a_scenario() -> None:
-    """What ``ea-gym phm`` does, with ``PHMConfig(estimator_kind="joint")``: the spring's ramp isolated, its End of Life predicted."""
+def test_the_joint_estimator_runs_in_the_chain_on_a_scenario(tmp_path: Path) -> None:
+    """What ``ea-gym phm`` does, with ``PHMConfig(estimator_kind="joint")``: the spring's ramp isolated, its End of Life
+    predicted, the results written."""
     scenario = load_scenario({**load_scenario("experiments/scenarios/spring_k_ramp.json").to_dict(), "duration": 80.0})
     config = PHMConfig(timing=ChainTiming(sample_rate=scenario.sample_rate, noise=scenario.noise), estimator_kind="joint")
     rng = np.random.default_rng(scenario.sensor_seed)
@@ -198,3 +203,20 @@ def test_the_joint_estimator_runs_in_the_chain_on_a_scenario() -> None:
     last = run.statuses[-1]
     assert last.estimation.degrading is not None and last.estimation.degrading[0, chain.degradable.index("k")] > 0.9
     assert chain.classes[last.isolated[0]] == "k" and np.isfinite(last.eol[0])
+    results = write_phm_outputs(tmp_path, run, chain, scenario, "joint")
+    assert (tmp_path / "results.json").is_file() and results is not None
+
+
+def test_the_joint_estimator_runs_in_the_environment_across_its_step_time() -> None:
+    """The environment's steps stand for more time than their signals last: theta is carried over the gap by its drift."""
+    env = gym.make("ea_gym/SpringMassDamper-v0", phm=PHMConfig(estimator_kind="joint"))
+    env.reset(seed=0)
+    joint = env.unwrapped.core.chain.estimator
+    assert isinstance(joint, JointFilter)
+    for _ in range(40):
+        observation, _, terminated, truncated, info = env.step(0)
+        assert not (terminated or truncated)
+    lower, upper = np.array([MODEL.safe_limits[name] for name in joint.degradable]).T
+    truth = np.array([info["true_parameters"][name] for name in joint.degradable])
+    np.testing.assert_allclose(observation["parameter_estimate"], (truth - lower) / (upper - lower), atol=0.05)
+    env.close()

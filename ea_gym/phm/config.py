@@ -225,16 +225,22 @@ class JointFilterConfig:
 
     Attributes:
         state_noise: each energy variable's process-noise variance per sample, as a multiple of its
-            measurement noise variance.
-        theta_noise: each parameter's random-walk std, per sqrt(s) (1/sqrt(s)).
-        drift_noise: each drift's random-walk std, per sqrt(s) (1/s^1.5): how fast a wear rate may change.
+            measurement noise variance: none, as the tracking filters (the filter's model is the
+            plant's own discretization).
+        theta_noise: each parameter's random-walk std, per sqrt(s) (1/sqrt(s)); drift_noise: each drift's,
+            per sqrt(s) (1/s^1.5), how fast a wear rate may change: the tracking filters' values
+            (``TrackingConfig``, measured on issue 17's ramps), not chosen again for the joint filter.
         theta_prior: std of each parameter at the start, fraction of its safe span: a machine's part may
             sit anywhere in the middle half of its range (uniform there: std 0.144 of the span).
         drift_prior: std of each drift at the start (1/s, relative to nominal).
         bound_margin: the estimates are held within the safe limits widened by this fraction of the span
             on either side (a part past its limit must still be seen past it).
         degrading_rate: a part is degrading when its drift exceeds this fraction of its safe span per
-            second (its probability: P(|drift| > rate) under the filter's Gaussian).
+            second (its probability: P(|drift| > rate) under the filter's Gaussian). 1.5e-3: 2.5 x the
+            drift's std on healthy spring-mass-damper records (5-6.5e-4 of the span per s, solve_ivp,
+            1 % noise, seeds 100 and 101, not the tests') and 1.6 x the largest healthy |drift| there
+            (9.3e-4); a part reaching its limit from nominal within minutes (the environment's wear, 0.5-1.5 %
+            of the way per s) drifts several times faster.
         min_noise: floor of the measurement noise fraction, which keeps noise-free signals well posed.
     """
 
