@@ -12,10 +12,15 @@ with its prognosis.
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+
+from ea_gym.diagnosis.database import classes_of
+from ea_gym.models import SystemModel
 
 
 @dataclass(frozen=True)
@@ -88,3 +93,42 @@ class ParameterEstimator(Protocol):
 
     def update(self, signals: StepSignals, alarm: np.ndarray, suspects: np.ndarray) -> ParameterEstimates:
         """Process one step; ``alarm`` (N,): a fault is detected; ``suspects`` (N, D): the hypotheses to estimate."""
+
+
+def checked_arguments(
+    model: SystemModel, degradable: Sequence[str] | None, sample_rate: float, noise: float, n_systems: int
+) -> tuple[str, ...]:
+    """An estimator's parameters (default: the isolation classes', every one with safe limits), its sample rate
+    (Hz), noise fraction and N checked.
+
+    Raises:
+        ValueError: a parameter that is not the model's or has no safe limits; a sample rate not > 0, a
+            negative noise fraction, or N < 1.
+    """
+    names = tuple(degradable) if degradable is not None else classes_of(model)[1:]
+    for name in names:
+        model.check_name(name, "degradable")
+        if name not in model.safe_limits:
+            raise ValueError(f"degradable: {name!r} has no safe limits in model {model.name!r}")
+    if not (math.isfinite(sample_rate) and sample_rate > 0):
+        raise ValueError(f"sample_rate must be a finite number of Hz > 0, got {sample_rate!r}")
+    if not (math.isfinite(noise) and noise >= 0):
+        raise ValueError(f"noise must be a finite fraction >= 0, got {noise!r}")
+    if n_systems < 1:
+        raise ValueError(f"n_systems must be >= 1, got {n_systems!r}")
+    return names
+
+
+def checked_signals(signals: StepSignals, n: int, nx: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A step's measured signals (N, nx, L + 1), load and its rate (N, L + 1) and end times (N,), as contiguous
+    float arrays, their shapes checked against N = ``n`` systems of ``nx`` signals."""
+    measured = np.ascontiguousarray(signals.measured, dtype=float)
+    if measured.ndim != 3 or measured.shape[:2] != (n, nx):
+        raise ValueError(f"signals.measured must be (N={n}, nx={nx}, L + 1), got {measured.shape}")
+    load, load_rate = np.ascontiguousarray(signals.load, dtype=float), np.ascontiguousarray(signals.load_rate, dtype=float)
+    if load.shape != (n, measured.shape[2]) or load_rate.shape != (n, measured.shape[2]):
+        raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
+    t = np.ascontiguousarray(signals.t, dtype=float)
+    if t.shape != (n,):
+        raise ValueError(f"signals.t must be (N={n},), got {t.shape}")
+    return measured, load, load_rate, t

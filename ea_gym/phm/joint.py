@@ -34,7 +34,6 @@ alone" that with p_j for 1 - p_j; the probabilities themselves travel in ``Param
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -42,11 +41,10 @@ import numpy as np
 from ea_gym._kernels.joint import joint_samples
 from ea_gym._kernels.tracking import VARIANCE_FLOOR
 from ea_gym.bondgraph.simulation import hermite_coefficients
-from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import JointFilterConfig, PHMConfig
-from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.phm.estimation import ParameterEstimates, StepSignals, checked_arguments, checked_signals
 from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import DriftPrognosis
 from ea_gym.phm.registry import EstimationStages, register_estimator
@@ -91,17 +89,7 @@ class JointFilter:
         degradable: Sequence[str] | None = None, config: JointFilterConfig | None = None,
     ) -> None:
         self.model = model
-        self.degradable: tuple[str, ...] = tuple(degradable) if degradable is not None else classes_of(model)[1:]
-        for name in self.degradable:
-            model.check_name(name, "degradable")
-            if name not in model.safe_limits:
-                raise ValueError(f"degradable: {name!r} has no safe limits in model {model.name!r}")
-        if not (math.isfinite(sample_rate) and sample_rate > 0):
-            raise ValueError(f"sample_rate must be a finite number of Hz > 0, got {sample_rate!r}")
-        if not (math.isfinite(noise) and noise >= 0):
-            raise ValueError(f"noise must be a finite fraction >= 0, got {noise!r}")
-        if n_systems < 1:
-            raise ValueError(f"n_systems must be >= 1, got {n_systems!r}")
+        self.degradable: tuple[str, ...] = checked_arguments(model, degradable, sample_rate, noise, n_systems)
         self.config = config or JointFilterConfig()
         self.h = 1.0 / sample_rate
         self.noise = max(float(noise), self.config.min_noise)
@@ -169,7 +157,7 @@ class JointFilter:
         parameter is estimated at every step). A system starts, at nominal, at its first step after a reset;
         where a step stands for more time than its signals last (``StepSignals.t`` moved by more), theta is
         carried by its drift over the difference and holds over the signals."""
-        measured, load, load_rate, t = self._checked(signals)
+        measured, load, load_rate, t = checked_signals(signals, self.n, self.nx)
         samples = measured.shape[2] - 1
         variance = np.maximum(self.noise**2 * np.mean(measured**2, axis=2) / (1.0 + self.noise**2), VARIANCE_FLOOR)  # (N, nx)
         self._start(~self.started, measured[:, :, 0], variance)
@@ -188,24 +176,10 @@ class JointFilter:
         self.innovation = np.empty((self.n, samples, self.nx))
         self.innovation_covariance = np.empty((self.n, samples, self.nx, self.nx))
         joint_samples(
-            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, np.ascontiguousarray(measured), variance, self._momenta, self._inertia,
+            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, measured, variance, self._momenta, self._inertia,
             self.lo, self.hi, self.x, self.P, self.innovation, self.innovation_covariance,
         )
         return self.estimates(t)
-
-    def _checked(self, signals: StepSignals) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """The step's measured signals (N, nx, L + 1), load and its rate (N, L + 1) and end times (N,), checked."""
-        measured = np.asarray(signals.measured, dtype=float)
-        n, nx = self.n, self.nx
-        if measured.ndim != 3 or measured.shape[:2] != (n, nx) or measured.shape[2] < 2:
-            raise ValueError(f"signals.measured must be (N={n}, nx={nx}, L + 1 >= 2), got {measured.shape}")
-        load, load_rate = np.asarray(signals.load, dtype=float), np.asarray(signals.load_rate, dtype=float)
-        if load.shape != (n, measured.shape[2]) or load_rate.shape != (n, measured.shape[2]):
-            raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
-        t = np.asarray(signals.t, dtype=float)
-        if t.shape != (n,):
-            raise ValueError(f"signals.t must be (N={n},), got {t.shape}")
-        return measured, load, load_rate, t
 
     def _start(self, rows: np.ndarray, first: np.ndarray, variance: np.ndarray) -> None:
         """Systems ``rows`` (N,) at nominal: the energy variables read off the first samples ``first`` (N, nx)
