@@ -107,14 +107,12 @@ class JointFilter:
         self.theta_noise = (self.config.theta_noise * self.nominal) ** 2  # variance per s
         self.drift_noise = (self.config.drift_noise * self.nominal) ** 2
         self.rate = self.config.degrading_rate * self.span
-        # each sensor's reading: an I element's momentum over its (estimated or nominal) inertia, (signal, degradable index or -1, nominal)
-        degradable_columns = list(self.columns)
-        self.momenta = tuple(
-            (i, degradable_columns.index(p) if p in degradable_columns else -1, float(self.base[p])) for i, p in Sensors(model).momenta
-        )
-        # the same as arrays, for the compiled samples
-        self._momenta = np.array([(i, j) for i, j, _ in self.momenta], dtype=np.int64).reshape(-1, 2)
-        self._inertia = np.array([value for _, _, value in self.momenta], dtype=float)
+        # every I element's flow p / I: its signal and the degradable index of I (-1: I is not estimated), and I's nominal value
+        sensors, degradable_columns = Sensors(model), list(self.columns)
+        pairs = [(i, degradable_columns.index(p) if p in degradable_columns else -1) for i, p in sensors.momenta]
+        self.momenta = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        self.inertia = np.array([self.base[p] for _, p in sensors.momenta], dtype=float)
+        self.nominal_inverse_gain = sensors.inverse_gain(self.base)  # (nx,): the energy variables from the signals at nominal
         size = self.nx + 2 * d
         self.x = np.zeros((n_systems, size))
         self.P = np.zeros((n_systems, size, size))
@@ -176,7 +174,7 @@ class JointFilter:
         self.innovation = np.empty((self.n, samples, self.nx))
         self.innovation_covariance = np.empty((self.n, samples, self.nx, self.nx))
         joint_samples(
-            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, measured, variance, self._momenta, self._inertia,
+            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, measured, variance, self.momenta, self.inertia,
             self.lo, self.hi, self.x, self.P, self.innovation, self.innovation_covariance,
         )
         return self.estimates(t)
@@ -186,9 +184,7 @@ class JointFilter:
         through the nominal gains, with their measurement's ``variance``; no drift; the priors' variances."""
         if not rows.any():
             return
-        inverse = np.ones(self.nx)
-        for i, _, value in self.momenta:
-            inverse[i] = value
+        inverse = self.nominal_inverse_gain
         d = len(self.degradable)
         x, P = np.zeros((rows.sum(), len(self.x[0]))), np.zeros((rows.sum(),) + self.P.shape[1:])
         x[:, : self.nx], x[:, self.theta] = first[rows] * inverse, self.nominal
@@ -232,9 +228,7 @@ class JointFilter:
         their measurement variance (``variance`` (N, nx) in the signals' units, taken to the energy
         variables at nominal), theta's and the drift's their random walks over a sample, none for theta
         where it holds over the signals (``drift_time`` 0)."""
-        inverse = np.ones(self.nx)
-        for i, _, value in self.momenta:
-            inverse[i] = value
+        inverse = self.nominal_inverse_gain
         diagonal = np.concatenate(
             [self.config.state_noise * variance * inverse**2,
              np.where(drift_time[:, None] > 0, self.theta_noise * self.h, 0.0),
