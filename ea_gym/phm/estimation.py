@@ -6,8 +6,9 @@ step which hypotheses to estimate (all of them until the isolation is confident 
 suspect alone), and logs maintenance that moved a parameter.
 
 The implementations (the EA inversion of :mod:`~ea_gym.phm.inversion_estimator`, the tracking
-filters of :mod:`~ea_gym.phm.tracking`) register with :mod:`~ea_gym.phm.registry`, which pairs each
-with its prognosis.
+filters of :mod:`~ea_gym.phm.tracking`, the joint filter of :mod:`~ea_gym.phm.joint`, which estimates
+every parameter at once and says how likely each is to be degrading) register with
+:mod:`~ea_gym.phm.registry`, which pairs each with its prognosis.
 """
 
 from __future__ import annotations
@@ -44,7 +45,8 @@ class ParameterEstimates:
     """An estimator's output after one step, N systems and D degradable parameters.
 
     Attributes:
-        value: estimate of each degradable parameter (SI), each as if it alone were faulty, (N, D).
+        value: estimate of each degradable parameter (SI), each as if it alone were faulty (all at once for
+            the joint filter), (N, D).
         variance: its variance, NaN where the estimator has none, (N, D).
         drift: its rate of change (unit/s), NaN where none, (N, D); drift_variance: its variance, (N, D).
         log_evidence: log-likelihood-like evidence of "none" then each hypothesis, larger is better,
