@@ -208,6 +208,7 @@ def _eol_cell(run: dict[str, Any], eol: float | None) -> str:
 ESTIMATOR_ROUTES = {
     "tracking": "a Kalman filter per hypothesis tracking the parameter and its drift, the drift carried to the safe limits",
     "ea_inversion": "the paper's EA inversion, its recent estimates' degree-1 trend extrapolated to the safe limits",
+    "joint": "one Kalman filter over the states, every degradable parameter and its drift, each drift carried to the safe limits",
 }
 
 

@@ -152,6 +152,33 @@ def _(rng: np.random.Generator) -> Case:
                 check=lambda got, args: np.isinf(args[7]).any() and (args[7] == 0).any())
 
 
+# --- joint filter ---------------------------------------------------------------------------------
+
+
+@case("joint.joint_samples")
+def _(rng: np.random.Generator) -> Case:
+    """Two systems, nx = 2, D = 3 (theta near 100, 10, 0.5), five samples: a flow read through an estimated
+    inertia and one through a nominal one; the third parameter's upper bound below its estimate (clipped)."""
+    n, nx, d, nw, samples = 2, 2, 3, 4, 5
+    size = nx + 2 * d
+    M0 = np.concatenate([np.eye(nx) + 0.01 * rng.standard_normal((n, nx, nx)), 0.01 * rng.standard_normal((n, nx, nw))], axis=2)
+    dM = 1e-3 * rng.standard_normal((n, d, nx, nx + nw))
+    theta = np.array([100.0, 10.0, 0.5])
+    anchor = theta * (1.0 + 0.01 * rng.standard_normal((n, d)))
+    theta_now = anchor * (1.0 + 1e-3 * rng.standard_normal((n, d)))
+    x = np.concatenate([rng.standard_normal((n, nx)), theta_now, 1e-3 * rng.standard_normal((n, d))], axis=1)
+    root = 0.1 * rng.standard_normal((n, size, size))
+    P = root @ root.transpose(0, 2, 1) + 1e-4 * np.eye(size)
+    Q = np.repeat(np.diag(1e-6 * rng.uniform(0.5, 1.5, size))[None], n, axis=0)
+    lo, hi = 0.5 * theta, np.array([150.0, 15.0, 0.49])
+    return Case(
+        (M0, dM, anchor, rng.standard_normal((n, samples, nw)), np.array([H, 0.0]), Q, rng.standard_normal((n, nx, samples + 1)),
+         rng.uniform(0.5, 1.5, (n, nx)) * 1e-2, np.array([[0, 1], [1, -1]], dtype=np.int64), np.array([10.0, 2.0]), lo, hi, x, P,
+         np.empty((n, samples, nx)), np.empty((n, samples, nx, nx))),
+        rtol=1e-9, atol=1e-13,
+    )
+
+
 # --- prognosis, detection, history -------------------------------------------------------------------
 
 Z2 = 1.959963984540054**2

@@ -99,7 +99,7 @@ def test_a_registered_estimator_runs_in_the_environment_and_its_estimates_reach_
 
 def test_an_unknown_estimator_is_refused_naming_the_registered_ones():
     registered = registered_estimators()  # other tests of the session (the docs' pages) may have added theirs
-    assert {"ea_inversion", "fixed_guess", "tracking"} <= set(registered)
+    assert {"ea_inversion", "fixed_guess", "joint", "tracking"} <= set(registered)
     with pytest.raises(ValueError, match=rf"no estimator named 'kalman' is registered; registered: {', '.join(sorted(registered))} "):
         build_chain(MODEL, PHMConfig(estimator_kind="kalman"), load_shipped_classifier(MODEL.name), np.random.default_rng(0))
     with pytest.raises(ValueError, match="already registered"):

@@ -32,6 +32,7 @@ SCRIPTS = sorted(name for name in (path.relative_to(EXPERIMENTS).as_posix() for 
 #: the scripts that need an optional extra: the module that tells whether it is installed
 EXTRAS = {
     "studies/compare_progpy.py": "progpy",
+    "studies/joint_filter.py": "progpy",
     "integrations/torchrl_check.py": "torchrl",
     "integrations/rllib_ppo.py": "ray.rllib",
     "integrations/ray_benchmark.py": "ray.rllib",
@@ -152,6 +153,14 @@ def check_compare_progpy(out: Path, stdout: str) -> None:
     assert result["seeds"] == [0] and list(result["runs"]) == ["mass_m_ramp"]
 
 
+def check_joint_filter(out: Path, stdout: str) -> None:
+    result = read_json(out / "results.json")
+    summary = result["summary"]["k+b"]
+    assert list(result["cases"]) == ["k+b"] and set(summary) == {"joint filter", "ProgPy UKF (all parameters)"}
+    assert all(set(row["error_median"]) == {"k", "m", "b"} and row["ms_per_step"] > 0 for row in summary.values())
+    assert "| k+b | b | yes |" in (out / "table.md").read_text()
+
+
 def check_rllib_ppo(out: Path, stdout: str) -> None:
     runs = read_json(out / "summary.json")["runs"]
     assert set(runs) == {"vector_entry_point", "sync"} and all(run["episodes"]["episodes_other_length"] == 0 for run in runs.values())
@@ -189,6 +198,7 @@ RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "studies/env_decision.py": (("--out", "OUT"), check_env_decision),
     "studies/estimates_in_env.py": (("--out", "OUT"), check_estimates_in_env),
     "studies/from_scratch_diagnosis.py": (("--out", "OUT/diagnosis.json"), check_from_scratch_diagnosis),
+    "studies/joint_filter.py": (("--out", "OUT"), check_joint_filter),
     "studies/tracking_accuracy.py": ((), printed("N =   1 systems", "N =   4 systems")),
 }
 

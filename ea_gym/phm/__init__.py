@@ -17,6 +17,7 @@ from ea_gym.phm.config import (
     ExtrapolationConfig,
     InversionConfig,
     IsolationConfig,
+    JointFilterConfig,
     PHMConfig,
     TrackingConfig,
 )
@@ -39,6 +40,7 @@ from ea_gym.phm.harness import (
 from ea_gym.phm.inversion import EAInversion
 from ea_gym.phm.inversion_estimator import EAInversionEstimator
 from ea_gym.phm.isolation import EvidenceWeights, balance_chi_square
+from ea_gym.phm.joint import JointFilter
 from ea_gym.phm.prognosis import (
     DriftPrognosis,
     EndOfLife,
@@ -65,6 +67,8 @@ __all__ = [
     "EvidenceWeights",
     "InversionConfig",
     "IsolationConfig",
+    "JointFilter",
+    "JointFilterConfig",
     "ExtrapolationConfig",
     "HealthStatus",
     "PHMChain",

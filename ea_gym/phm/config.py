@@ -9,6 +9,7 @@ Each stage reads its own section and the shared :class:`ChainTiming` only. ``PHM
 * ``isolation`` (:class:`IsolationConfig`): :mod:`~ea_gym.phm.isolation`, the network, the balance evidence, the fusion;
 * ``inversion`` (:class:`InversionConfig`): the "ea_inversion" estimator (:mod:`~ea_gym.phm.inversion_estimator`);
 * ``tracking`` (:class:`TrackingConfig`): the "tracking" estimator (:mod:`~ea_gym.phm.tracking`);
+* ``joint`` (:class:`JointFilterConfig`): the "joint" estimator (:mod:`~ea_gym.phm.joint`);
 * ``extrapolation`` (:class:`ExtrapolationConfig`): :mod:`~ea_gym.phm.prognosis`, the estimate carried to the limits.
 
 An estimator's section is read only when that estimator is chosen. Example::
@@ -217,6 +218,49 @@ class TrackingConfig:
 
 
 @dataclass(frozen=True)
+class JointFilterConfig:
+    """Settings of the joint filter (the "joint" estimator, :mod:`~ea_gym.phm.joint`): one filter per system over
+    the energy variables, every degradable parameter and its drift. Parameter quantities are relative to
+    the parameter's nominal value, priors and thresholds to its safe span (upper - lower limit).
+
+    Attributes:
+        state_noise: each energy variable's process-noise variance per sample, as a multiple of its
+            measurement noise variance: none, as the tracking filters (the filter's model is the
+            plant's own discretization).
+        theta_noise: each parameter's random-walk std, per sqrt(s) (1/sqrt(s)); drift_noise: each drift's,
+            per sqrt(s) (1/s^1.5), how fast a wear rate may change: the tracking filters' values
+            (``TrackingConfig``, measured on issue 17's ramps), not chosen again for the joint filter.
+        theta_prior: std of each parameter at the start, fraction of its safe span: a machine's part may
+            sit anywhere in the middle half of its range (uniform there: std 0.144 of the span).
+        drift_prior: std of each drift at the start (1/s, relative to nominal).
+        bound_margin: the estimates are held within the safe limits widened by this fraction of the span
+            on either side (a part past its limit must still be seen past it).
+        degrading_rate: a part is degrading when its drift exceeds this fraction of its safe span per
+            second (its probability: P(|drift| > rate) under the filter's Gaussian). 1.5e-3: 2.5 x the
+            drift's std on healthy spring-mass-damper records (5-6.5e-4 of the span per s, solve_ivp,
+            1 % noise, seeds 100 and 101, not the tests') and 1.6 x the largest healthy |drift| there
+            (9.3e-4); a part reaching its limit from nominal within minutes (the environment's wear, 0.5-1.5 %
+            of the way per s) drifts several times faster.
+        min_noise: floor of the measurement noise fraction, which keeps noise-free signals well posed.
+    """
+
+    state_noise: float = 0.0
+    theta_noise: float = 1e-4
+    drift_noise: float = 4e-5
+    theta_prior: float = 0.15
+    drift_prior: float = 1e-3
+    bound_margin: float = 0.5
+    degrading_rate: float = 1.5e-3
+    min_noise: float = 1e-4
+
+    def __post_init__(self) -> None:
+        for name in ("state_noise", "theta_noise", "drift_noise", "theta_prior", "drift_prior", "bound_margin", "degrading_rate", "min_noise"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"JointFilterConfig.{name} must be finite and >= 0, got {value!r}")
+
+
+@dataclass(frozen=True)
 class ExtrapolationConfig:
     """Settings of the prognosis: the extrapolation of an estimate to the safe limits (:mod:`~ea_gym.phm.prognosis`).
 
@@ -248,12 +292,14 @@ class PHMConfig:
         estimator_kind: the parameter estimator and its prognosis, a name registered in
             :mod:`~ea_gym.phm.registry` (checked when the chain is built): "tracking", a Kalman filter
             per hypothesis tracking the parameter and its drift, the drift carried to the limits;
-            "ea_inversion", the paper's EA inversion with a median filter, its trend extrapolated.
+            "ea_inversion", the paper's EA inversion with a median filter, its trend extrapolated;
+            "joint", one filter per system over the states, every degradable parameter and its drift.
         monitor: the EA monitor's signal processing.
         detector: the residual detection and its calibration.
         isolation: the network's frames, the balance evidence and the fusion.
         inversion: the EA inversion (read by the "ea_inversion" estimator).
         tracking: the tracking filters (read by the "tracking" estimator).
+        joint: the joint filter (read by the "joint" estimator).
         extrapolation: the prognosis's extrapolation to the safe limits.
     """
 
@@ -264,4 +310,5 @@ class PHMConfig:
     isolation: IsolationConfig = field(default_factory=IsolationConfig)
     inversion: InversionConfig = field(default_factory=InversionConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    joint: JointFilterConfig = field(default_factory=JointFilterConfig)
     extrapolation: ExtrapolationConfig = field(default_factory=ExtrapolationConfig)

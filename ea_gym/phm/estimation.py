@@ -6,16 +6,22 @@ step which hypotheses to estimate (all of them until the isolation is confident 
 suspect alone), and logs maintenance that moved a parameter.
 
 The implementations (the EA inversion of :mod:`~ea_gym.phm.inversion_estimator`, the tracking
-filters of :mod:`~ea_gym.phm.tracking`) register with :mod:`~ea_gym.phm.registry`, which pairs each
-with its prognosis.
+filters of :mod:`~ea_gym.phm.tracking`, the joint filter of :mod:`~ea_gym.phm.joint`, which estimates
+every parameter at once and says how likely each is to be degrading) register with
+:mod:`~ea_gym.phm.registry`, which pairs each with its prognosis.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
+
+from ea_gym.diagnosis.database import classes_of
+from ea_gym.models import SystemModel
 
 
 @dataclass(frozen=True)
@@ -39,7 +45,8 @@ class ParameterEstimates:
     """An estimator's output after one step, N systems and D degradable parameters.
 
     Attributes:
-        value: estimate of each degradable parameter (SI), each as if it alone were faulty, (N, D).
+        value: estimate of each degradable parameter (SI), each as if it alone were faulty (all at once for
+            the joint filter), (N, D).
         variance: its variance, NaN where the estimator has none, (N, D).
         drift: its rate of change (unit/s), NaN where none, (N, D); drift_variance: its variance, (N, D).
         log_evidence: log-likelihood-like evidence of "none" then each hypothesis, larger is better,
@@ -47,6 +54,8 @@ class ParameterEstimates:
         covariance: the covariance of each value and its drift (unit^2/s), NaN where none, (N, D).
         estimated: which hypotheses were updated at this step, (N, D).
         time: the time each value describes (s), (N, D).
+        degrading: each parameter's probability of drifting (of wearing), (N, D), from an estimator that
+            estimates every parameter at once (the "joint" filter); None from the others.
     """
 
     value: np.ndarray
@@ -57,6 +66,7 @@ class ParameterEstimates:
     log_evidence: np.ndarray
     estimated: np.ndarray
     time: np.ndarray
+    degrading: np.ndarray | None = None
 
 
 class ParameterEstimator(Protocol):
@@ -85,3 +95,42 @@ class ParameterEstimator(Protocol):
 
     def update(self, signals: StepSignals, alarm: np.ndarray, suspects: np.ndarray) -> ParameterEstimates:
         """Process one step; ``alarm`` (N,): a fault is detected; ``suspects`` (N, D): the hypotheses to estimate."""
+
+
+def checked_arguments(
+    model: SystemModel, degradable: Sequence[str] | None, sample_rate: float, noise: float, n_systems: int
+) -> tuple[str, ...]:
+    """An estimator's parameters (default: the isolation classes', every one with safe limits), its sample rate
+    (Hz), noise fraction and N checked.
+
+    Raises:
+        ValueError: a parameter that is not the model's or has no safe limits; a sample rate not > 0, a
+            negative noise fraction, or N < 1.
+    """
+    names = tuple(degradable) if degradable is not None else classes_of(model)[1:]
+    for name in names:
+        model.check_name(name, "degradable")
+        if name not in model.safe_limits:
+            raise ValueError(f"degradable: {name!r} has no safe limits in model {model.name!r}")
+    if not (math.isfinite(sample_rate) and sample_rate > 0):
+        raise ValueError(f"sample_rate must be a finite number of Hz > 0, got {sample_rate!r}")
+    if not (math.isfinite(noise) and noise >= 0):
+        raise ValueError(f"noise must be a finite fraction >= 0, got {noise!r}")
+    if n_systems < 1:
+        raise ValueError(f"n_systems must be >= 1, got {n_systems!r}")
+    return names
+
+
+def checked_signals(signals: StepSignals, n: int, nx: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """A step's measured signals (N, nx, L + 1), load and its rate (N, L + 1) and end times (N,), as contiguous
+    float arrays, their shapes checked against N = ``n`` systems of ``nx`` signals."""
+    measured = np.ascontiguousarray(signals.measured, dtype=float)
+    if measured.ndim != 3 or measured.shape[:2] != (n, nx):
+        raise ValueError(f"signals.measured must be (N={n}, nx={nx}, L + 1), got {measured.shape}")
+    load, load_rate = np.ascontiguousarray(signals.load, dtype=float), np.ascontiguousarray(signals.load_rate, dtype=float)
+    if load.shape != (n, measured.shape[2]) or load_rate.shape != (n, measured.shape[2]):
+        raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
+    t = np.ascontiguousarray(signals.t, dtype=float)
+    if t.shape != (n,):
+        raise ValueError(f"signals.t must be (N={n},), got {t.shape}")
+    return measured, load, load_rate, t

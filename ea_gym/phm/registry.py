@@ -9,7 +9,9 @@ estimator's module registers its builder with one line; the built-in ones,
 * "tracking" (:mod:`~ea_gym.phm.tracking`): a Kalman filter per hypothesis tracking the parameter
   and its drift, the drift carried to the limits with its covariance (``DriftPrognosis``);
 * "ea_inversion" (:mod:`~ea_gym.phm.inversion_estimator`): the paper's EA inversion with a causal
-  median, its recent estimates' trend extrapolated (``TrendPrognosis``),
+  median, its recent estimates' trend extrapolated (``TrendPrognosis``);
+* "joint" (:mod:`~ea_gym.phm.joint`): one Kalman filter per system over the states, every degradable
+  parameter and its drift at once, each part's degrading probability beside (``DriftPrognosis``),
 
 register when ``ea_gym.phm`` is imported.
 

@@ -49,11 +49,10 @@ from ea_gym._kernels.filter_records import FilterBank, FilterSettings, FilterSta
 from ea_gym._kernels.tracking import track
 from ea_gym.bondgraph.elements import Kind
 from ea_gym.bondgraph.simulation import discretize
-from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig, TrackingConfig
-from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.phm.estimation import ParameterEstimates, StepSignals, checked_arguments, checked_signals
 from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import DriftPrognosis
 from ea_gym.phm.registry import EstimationStages, register_estimator
@@ -160,17 +159,7 @@ class TrackingEstimator:
         degradable: Sequence[str] | None = None, config: TrackingConfig | None = None,
     ) -> None:
         self.model = model
-        self.degradable: tuple[str, ...] = tuple(degradable) if degradable is not None else classes_of(model)[1:]
-        for name in self.degradable:
-            model.check_name(name, "degradable")
-            if name not in model.safe_limits:
-                raise ValueError(f"degradable: {name!r} has no safe limits in model {model.name!r}")
-        if not (math.isfinite(sample_rate) and sample_rate > 0):
-            raise ValueError(f"sample_rate must be a finite number of Hz > 0, got {sample_rate!r}")
-        if not (math.isfinite(noise) and noise >= 0):
-            raise ValueError(f"noise must be a finite fraction >= 0, got {noise!r}")
-        if n_systems < 1:
-            raise ValueError(f"n_systems must be >= 1, got {n_systems!r}")
+        self.degradable: tuple[str, ...] = checked_arguments(model, degradable, sample_rate, noise, n_systems)
         self.config = config or TrackingConfig()
         self.h = 1.0 / sample_rate
         self.noise = max(float(noise), self.config.min_noise)
@@ -228,16 +217,8 @@ class TrackingEstimator:
         over the difference before the signals (see the module docstring). Compiled (``track``), step
         and estimates alike.
         """
-        measured = np.ascontiguousarray(signals.measured, dtype=float)
-        n, nx = self.n, self.model.state_space.n_states
-        if measured.ndim != 3 or measured.shape[:2] != (n, nx):
-            raise ValueError(f"signals.measured must be (N={n}, nx={nx}, L + 1), got {measured.shape}")
-        load, load_rate = np.ascontiguousarray(signals.load, dtype=float), np.ascontiguousarray(signals.load_rate, dtype=float)
-        if load.shape != (n, measured.shape[2]) or load_rate.shape != (n, measured.shape[2]):
-            raise ValueError(f"signals.load and load_rate must be (N={n}, L + 1 = {measured.shape[2]})")
-        t = np.ascontiguousarray(signals.t, dtype=float)
-        if t.shape != (n,):
-            raise ValueError(f"signals.t must be (N={n},), got {t.shape}")
+        n = self.n
+        measured, load, load_rate, t = checked_signals(signals, n, self.model.state_space.n_states)
         hyp, config = self.hypotheses, self.config
         estimates, evidence = np.empty((6, n, len(self.degradable))), np.empty((n, len(hyp.nominal)))
 

@@ -22,7 +22,7 @@ cannot take.
   discretizations), ``multisine`` (loads), ``wear``;
 - monitor: ``smoothing`` (Savitzky-Golay), ``monitor`` (a chunk's powers, EA and balances), ``activity``
   (EA and EAI), ``history``;
-- chain: ``detection``, ``features``, ``network``, ``isolation``, ``tracking`` (the filter bank),
+- chain: ``detection``, ``features``, ``network``, ``isolation``, ``tracking`` (the filter bank), ``joint`` (the joint filter),
   ``prognosis``;
 - environment: ``observation``, ``ledger``;
 - numpy's own sum: ``summation``.

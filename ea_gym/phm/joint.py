@@ -1,0 +1,285 @@
+"""Joint estimation: one extended Kalman filter per system over the energy variables, every degradable
+parameter and its drift, so that each part's estimate, variance and drift hold whatever the others do.
+
+The state is x = [energy variables (nx), theta (D), drift (D)]: theta the degradable parameters (SI),
+each drift a random walk (unit/s) and theta its integral plus a random walk. The prediction is the
+plant's own exact discretization (``ea_gym.phm.tracking.transition``: matrix exponential, cubic Hermite
+load), evaluated once per step at the step's first estimate (the anchor) and at the anchor moved by
++-delta in each parameter: [Phi | Gamma](theta) = M0 + sum_j dM_j (theta_j - anchor_j) within the
+step, dM_j the central difference, so the Jacobian's parameter columns dM_j [x; w] come with it. The
+measurement model is ``Sensors(model)``'s: an I element's flow p / I (nonlinear where I is estimated,
+its H row carries -p / I^2), a C element's displacement q. Each sample's update is the filterpy form
+(y = z - h(x), S = H P H^T + R, K = P H^T S^-1; compiled, ``ea_gym._kernels.joint``, beside its numpy
+reference); its innovations y and their covariances S are kept for the step (``innovation``,
+``innovation_covariance``: a model-fit test reads them).
+
+Why an EKF and not an unscented filter (ProgPy's ``UnscentedKalmanFilter``, the comparison's anchor): the
+model is linear in the states and smooth in the parameters, the parameters move by a fraction of a per
+cent per step, so the linearisation's error is far below the 1 % sensor noise, and one step's 2 D + 1
+discretizations replace the 2 (nx + 2 D) + 1 sigma points' propagation at every sample
+(experiments/studies/joint_filter.py compares their errors and times on the same signals).
+
+Noise model (``JointFilterConfig``): measurement variance the noise fraction squared times each
+signal's mean square over the step (as the sensors scale it); random walks of theta and drift relative
+to the nominal values (the tracking filters' measured choice, ``ea_gym.phm.tracking``); a prior on
+theta of 0.15 of the safe span around nominal (a machine anywhere in the middle half of its range) and
+on the drift of 1e-3 / s. The estimates are held within the safe limits widened by half their span.
+
+Degrading evidence: a part degrades when its drift exceeds ``degrading_rate`` of its safe span per
+second; with the drift's Gaussian N(d, s^2), P(degrading) = Phi((d - r) / s) + Phi((-d - r) / s). A
+constant offset from nominal is not a drift, so a machine off its catalogue values is not "degrading".
+The chain's single-class isolation reads these as its log evidence: "none" log prod (1 - p_i), "j
+alone" that with p_j for 1 - p_j; the probabilities themselves travel in ``ParameterEstimates.degrading``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from ea_gym._kernels.joint import joint_samples
+from ea_gym._kernels.tracking import VARIANCE_FLOOR
+from ea_gym.bondgraph.simulation import hermite_coefficients
+from ea_gym.diagnosis.monitor import Monitor
+from ea_gym.models import SystemModel
+from ea_gym.phm.config import JointFilterConfig, PHMConfig
+from ea_gym.phm.estimation import ParameterEstimates, StepSignals, checked_arguments, checked_signals
+from ea_gym.phm.isolation import EvidenceWeights
+from ea_gym.phm.prognosis import DriftPrognosis
+from ea_gym.phm.registry import EstimationStages, register_estimator
+from ea_gym.phm.tracking import transition
+from ea_gym.sensors import Sensors
+
+#: the central differences' step, relative to the parameter's nominal value: near the cube root of
+#: machine epsilon, where truncation and round-off errors meet
+DIFFERENCE_STEP = 1e-5
+#: probabilities are kept this far from 0 and 1 so that their logs stay finite
+PROBABILITY_FLOOR = 1e-12
+
+
+def degrading_probability(drift: np.ndarray, variance: np.ndarray, rate: np.ndarray) -> np.ndarray:
+    """P(|drift| > rate) under N(drift, variance), elementwise (drift and rate in unit/s, variance in unit^2/s^2)."""
+    from scipy.special import ndtr  # imported when first needed: scipy.special takes a few tenths of a second
+
+    std = np.sqrt(np.maximum(variance, np.finfo(float).tiny))
+    return np.asarray(ndtr((drift - rate) / std) + ndtr((-drift - rate) / std))
+
+
+class JointFilter:
+    """Estimates every degradable parameter of N systems at once, with its drift (see the module docstring).
+
+    Args:
+        model: the monitored system; every degradable parameter needs safe limits.
+        sample_rate: the signals' sampling rate (Hz).
+        noise: the sensors' noise std as a fraction of each signal's RMS over a step.
+        n_systems: N.
+        degradable: the estimated parameters; default the isolation classes' (every one with safe limits).
+        config: process noise, priors, bounds and the degrading rate.
+
+    Attributes:
+        x: each system's state [energy variables, theta (SI), drift (SI/s)], (N, nx + 2 D).
+        P: its covariance, (N, nx + 2 D, nx + 2 D).
+        innovation: the last step's innovations (measured minus predicted signal), (N, L, nx).
+        innovation_covariance: their covariances S, (N, L, nx, nx).
+    """
+
+    def __init__(
+        self, model: SystemModel, sample_rate: float, noise: float, n_systems: int = 1,
+        degradable: Sequence[str] | None = None, config: JointFilterConfig | None = None,
+    ) -> None:
+        self.model = model
+        self.degradable: tuple[str, ...] = checked_arguments(model, degradable, sample_rate, noise, n_systems)
+        self.config = config or JointFilterConfig()
+        self.h = 1.0 / sample_rate
+        self.noise = max(float(noise), self.config.min_noise)
+        self.n = n_systems
+        space = model.state_space
+        self.nx, d = space.n_states, len(self.degradable)
+        self.columns = np.array([space.parameter_names.index(name) for name in self.degradable])
+        self.base = model.parameter_vector()
+        self.nominal = self.base[self.columns]
+        limits = np.array([model.safe_limits[name] for name in self.degradable], dtype=float).reshape(d, 2)
+        self.span = limits[:, 1] - limits[:, 0]
+        # a physical value stays positive however wide the margin
+        self.lo = np.maximum(limits[:, 0] - self.config.bound_margin * self.span, 0.5 * limits[:, 0])
+        self.hi = limits[:, 1] + self.config.bound_margin * self.span
+        self.theta_noise = (self.config.theta_noise * self.nominal) ** 2  # variance per s
+        self.drift_noise = (self.config.drift_noise * self.nominal) ** 2
+        self.rate = self.config.degrading_rate * self.span
+        # every I element's flow p / I: its signal and the degradable index of I (-1: I is not estimated), and I's nominal value
+        sensors, degradable_columns = Sensors(model), list(self.columns)
+        pairs = [(i, degradable_columns.index(p) if p in degradable_columns else -1) for i, p in sensors.momenta]
+        self.momenta = np.array(pairs, dtype=np.int64).reshape(-1, 2)
+        self.inertia = np.array([self.base[p] for _, p in sensors.momenta], dtype=float)
+        self.nominal_inverse_gain = sensors.inverse_gain(self.base)  # (nx,): the energy variables from the signals at nominal
+        size = self.nx + 2 * d
+        self.x = np.zeros((n_systems, size))
+        self.P = np.zeros((n_systems, size, size))
+        self.innovation = np.zeros((n_systems, 0, self.nx))
+        self.innovation_covariance = np.zeros((n_systems, 0, self.nx, self.nx))
+        self.started = np.zeros(n_systems, dtype=bool)
+        self.clock = np.zeros(n_systems)  # the time (s) the filter describes, the end of the last step
+        self.lag = 0.0  # its estimates describe the step's end
+        self.warmup_steps = 0  # and come from the first step on
+        # every parameter is estimated at every step: one read-only answer shared by every step's estimates
+        self._estimated = np.ones((n_systems, d), dtype=bool)
+        self._estimated.flags.writeable = False
+
+    @property
+    def theta(self) -> slice:
+        """Where the parameters sit in the state."""
+        return slice(self.nx, self.nx + len(self.degradable))
+
+    @property
+    def drift(self) -> slice:
+        """Where the drifts sit in the state."""
+        return slice(self.nx + len(self.degradable), self.nx + 2 * len(self.degradable))
+
+    def reset(self, systems: np.ndarray | None = None) -> None:
+        """Start over for all systems, or those where the boolean mask (N,) is true: their filters restart,
+        at nominal, from their next step."""
+        rows = slice(None) if systems is None else np.asarray(systems, dtype=bool)
+        self.started[rows] = False
+
+    def restart(self, systems: np.ndarray, parameters: np.ndarray) -> None:
+        """Nothing to forget: every parameter is estimated at every step, so none is ever stale."""
+
+    def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
+        """Maintenance moved degradable parameter ``parameters[k]`` of system ``systems[k]`` by ``changes[k]``
+        (its SI unit) before the next update: its estimate moves by the known change (its drift stays)."""
+        self.x[np.asarray(systems), self.nx + np.asarray(parameters)] += np.asarray(changes, dtype=float)
+
+    def update(self, signals: StepSignals, alarm: np.ndarray, suspects: np.ndarray) -> ParameterEstimates:
+        """Run every system's filter over one step, whatever ``alarm`` (N,) and ``suspects`` (N, D) say (every
+        parameter is estimated at every step). A system starts, at nominal, at its first step after a reset;
+        where a step stands for more time than its signals last (``StepSignals.t`` moved by more), theta is
+        carried by its drift over the difference and holds over the signals."""
+        measured, load, load_rate, t = checked_signals(signals, self.n, self.nx)
+        samples = measured.shape[2] - 1
+        variance = np.maximum(self.noise**2 * np.mean(measured**2, axis=2) / (1.0 + self.noise**2), VARIANCE_FLOOR)  # (N, nx)
+        self._start(~self.started, measured[:, :, 0], variance)
+        gap = t - self.clock
+        carried = self.started & (gap > samples * self.h * (1.0 + 1e-9))
+        self._carry(carried, gap)
+        drift_time = np.where(carried, 0.0, self.h)
+        self.started[:] = True
+        self.clock[:] = t
+        anchor = self.x[:, self.theta].copy()
+        M0, dM = self._transitions(anchor)
+        w = hermite_coefficients(load[..., None], load_rate[..., None], self.h)  # (N, L, 4)
+        if M0.shape[2] - self.nx > w.shape[2]:  # the constant sources' column multiplies 1
+            w = np.concatenate([w, np.ones(w.shape[:2] + (1,))], axis=2)
+        Q = self._process_noise(variance, drift_time)
+        self.innovation = np.empty((self.n, samples, self.nx))
+        self.innovation_covariance = np.empty((self.n, samples, self.nx, self.nx))
+        joint_samples(
+            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, measured, variance, self.momenta, self.inertia,
+            self.lo, self.hi, self.x, self.P, self.innovation, self.innovation_covariance,
+        )
+        return self.estimates(t)
+
+    def _start(self, rows: np.ndarray, first: np.ndarray, variance: np.ndarray) -> None:
+        """Systems ``rows`` (N,) at nominal: the energy variables read off the first samples ``first`` (N, nx)
+        through the nominal gains, with their measurement's ``variance``; no drift; the priors' variances."""
+        if not rows.any():
+            return
+        inverse = self.nominal_inverse_gain
+        d = len(self.degradable)
+        x, P = np.zeros((rows.sum(), len(self.x[0]))), np.zeros((rows.sum(),) + self.P.shape[1:])
+        x[:, : self.nx], x[:, self.theta] = first[rows] * inverse, self.nominal
+        states, thetas, drifts = np.arange(self.nx), np.arange(self.nx, self.nx + d), np.arange(self.nx + d, self.nx + 2 * d)
+        P[:, states, states] = variance[rows] * inverse**2
+        P[:, thetas, thetas] = (self.config.theta_prior * self.span) ** 2
+        P[:, drifts, drifts] = (self.config.drift_prior * self.nominal) ** 2
+        self.x[rows], self.P[rows] = x, P
+
+    def _carry(self, rows: np.ndarray, gap: np.ndarray) -> None:
+        """Systems ``rows`` (N,) carried over ``gap`` (s, (N,)) without signals: theta += drift gap within the
+        bounds, P = J P J^T (J the identity but d theta / d drift = gap) plus the random walks over the gap."""
+        if not rows.any():
+            return
+        d = len(self.degradable)
+        J = np.repeat(np.eye(self.x.shape[1])[None], rows.sum(), axis=0)
+        thetas, drifts = np.arange(self.nx, self.nx + d), np.arange(self.nx + d, self.nx + 2 * d)
+        J[:, thetas, drifts] = gap[rows, None]
+        x = self.x[rows]
+        x[:, self.theta] = np.clip(x[:, self.theta] + gap[rows, None] * x[:, self.drift], self.lo, self.hi)
+        P = J @ self.P[rows] @ J.transpose(0, 2, 1)
+        P[:, thetas, thetas] += gap[rows, None] * self.theta_noise
+        P[:, drifts, drifts] += gap[rows, None] * self.drift_noise
+        self.x[rows], self.P[rows] = x, P
+
+    def _transitions(self, anchor: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """[Phi | Gamma] at each system's ``anchor`` (N, D), (N, nx, nx + 4 or 5), and its central-difference
+        slope in each parameter, (N, D, nx, nx + 4 or 5)."""
+        d = len(self.degradable)
+        delta = DIFFERENCE_STEP * self.nominal
+        thetas = np.repeat(self.base[None, None], self.n * (2 * d + 1), axis=0).reshape(self.n, 2 * d + 1, -1).copy()
+        thetas[:, :, self.columns] = anchor[:, None, :]
+        rows = np.arange(d)
+        thetas[:, 1 + rows, self.columns] += delta
+        thetas[:, 1 + d + rows, self.columns] -= delta
+        M = transition(self.model, thetas, self.h)
+        return M[:, 0], (M[:, 1 : 1 + d] - M[:, 1 + d :]) / (2.0 * delta[None, :, None, None])
+
+    def _process_noise(self, variance: np.ndarray, drift_time: np.ndarray) -> np.ndarray:
+        """Each system's process-noise covariance per sample, (N, nx + 2 D, nx + 2 D): the states' a multiple of
+        their measurement variance (``variance`` (N, nx) in the signals' units, taken to the energy
+        variables at nominal), theta's and the drift's their random walks over a sample, none for theta
+        where it holds over the signals (``drift_time`` 0)."""
+        inverse = self.nominal_inverse_gain
+        diagonal = np.concatenate(
+            [self.config.state_noise * variance * inverse**2,
+             np.where(drift_time[:, None] > 0, self.theta_noise * self.h, 0.0),
+             np.broadcast_to(self.drift_noise * self.h, (self.n, len(self.degradable)))],
+            axis=1,
+        )
+        return diagonal[:, :, None] * np.eye(diagonal.shape[1])
+
+    def degrading(self) -> np.ndarray:
+        """Each parameter's probability of degrading, (N, D): P(|drift| > ``degrading_rate`` x its safe span)."""
+        drifts = np.arange(self.nx + len(self.degradable), self.x.shape[1])
+        return degrading_probability(self.x[:, self.drift], self.P[:, drifts, drifts], self.rate)
+
+    def estimates(self, t: np.ndarray) -> ParameterEstimates:
+        """The filters' current estimates at times ``t`` (N,), with each parameter's degrading probability and
+        the single-class isolation's log evidence read off them (see the module docstring)."""
+        d = len(self.degradable)
+        thetas, drifts = np.arange(self.nx, self.nx + d), np.arange(self.nx + d, self.nx + 2 * d)
+        degrading = self.degrading()
+        p = np.clip(degrading, PROBABILITY_FLOOR, 1.0 - PROBABILITY_FLOOR)
+        none = np.sum(np.log1p(-p), axis=1)
+        log_evidence = np.concatenate([none[:, None], none[:, None] - np.log1p(-p) + np.log(p)], axis=1)
+        return ParameterEstimates(
+            value=self.x[:, self.theta].copy(),
+            variance=self.P[:, thetas, thetas],
+            drift=self.x[:, self.drift].copy(),
+            drift_variance=self.P[:, drifts, drifts],
+            covariance=self.P[:, thetas, drifts],
+            log_evidence=log_evidence,
+            estimated=self._estimated,
+            time=np.repeat(np.asarray(t, dtype=float)[:, None], d, axis=1),
+            degrading=degrading,
+        )
+
+    @property
+    def diffusion(self) -> np.ndarray:
+        """Each parameter's random walk as the filter models it, variance per second (unit^2/s), (D,): it goes on
+        over a prognosis's horizon."""
+        return self.theta_noise
+
+
+#: The joint route's isolation evidence: its log evidence is already a probability's log (not a sum over
+#: thousands of correlated samples, as the tracking filters' is), so it counts fully; the network and the
+#: balance keep the tracking route's weights beside it.
+JOINT_WEIGHTS = EvidenceWeights(estimator=1.0, network=0.25, balance=0.1)
+
+
+@register_estimator("joint")
+def joint_stages(model: SystemModel, monitor: Monitor, config: PHMConfig, n_systems: int) -> EstimationStages:
+    """The joint filter at the chain's sample rate and noise level (``config.timing``, ``config.joint``) and each
+    parameter's drift carried to its limits (``config.extrapolation``)."""
+    estimator = JointFilter(model, config.timing.sample_rate, config.timing.noise, n_systems, config=config.joint)
+    prognosis = DriftPrognosis(model, estimator.degradable, config.extrapolation, estimator.diffusion, n_systems)
+    return EstimationStages(estimator, prognosis, JOINT_WEIGHTS)
