@@ -206,7 +206,10 @@ def _phm_measurements(args: argparse.Namespace) -> int:
 
 
 def _print_outcome(results: dict, out: str) -> None:
+    from ea_gym.reporting import fit_text
+
     isolated = results["isolated_parameter"]
+    print(fit_text(results))
     print(f"detection at {results['detection_time']} s, isolated parameter {isolated}; wrote {out}/results.json and report.md")
 
 

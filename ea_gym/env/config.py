@@ -10,7 +10,7 @@ from typing import Any
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
-from ea_gym.phm import ChainTiming, PHMConfig
+from ea_gym.phm import ChainTiming, ModelFitConfig, PHMConfig
 
 OBS_MODES = ("phm", "sensors", "oracle")
 #: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
@@ -98,7 +98,8 @@ class EnvConfig:
     def phm_config(self) -> PHMConfig:
         """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
-        return dataclasses.replace(self.phm or PHMConfig(), timing=timing)
+        # the model-fit test is off in the v0 environments, whose episodes stay as they were
+        return dataclasses.replace(self.phm or PHMConfig(fit=ModelFitConfig(enabled=False)), timing=timing)
 
 
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
