@@ -152,6 +152,14 @@ def check_compare_progpy(out: Path, stdout: str) -> None:
     assert result["seeds"] == [0] and list(result["runs"]) == ["mass_m_ramp"]
 
 
+def check_model_fit(out: Path, stdout: str) -> None:
+    result = read_json(out / "results.json")
+    assert [run["case"] for run in result["runs"]] == ["healthy", "unit", "time_base", "form"]
+    assert all(run["passed"] for run in result["runs"])  # the healthy record fits, each misfit is said so
+    assert [row["scenario"] for row in result["scenarios"]] == ["mass_m_ramp"] and result["scenarios"][0]["on"]["ok"] is True
+    assert (out / "table.md").is_file()
+
+
 def check_rllib_ppo(out: Path, stdout: str) -> None:
     runs = read_json(out / "summary.json")["runs"]
     assert set(runs) == {"vector_entry_point", "sync"} and all(run["episodes"]["episodes_other_length"] == 0 for run in runs.values())
@@ -189,6 +197,7 @@ RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "studies/env_decision.py": (("--out", "OUT"), check_env_decision),
     "studies/estimates_in_env.py": (("--out", "OUT"), check_estimates_in_env),
     "studies/from_scratch_diagnosis.py": (("--out", "OUT/diagnosis.json"), check_from_scratch_diagnosis),
+    "studies/model_fit.py": (("--out", "OUT"), check_model_fit),
     "studies/tracking_accuracy.py": ((), printed("N =   1 systems", "N =   4 systems")),
 }
 
