@@ -39,7 +39,9 @@ class EnvConfig:
         rul_max: RUL observations are clipped to [0, rul_max] (s).
         load_std: range (low, high) of the random loads' std, fraction of the nominal load.
         phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
-            (window, clock, sample rate and noise) is the environment's (``phm_config``). None: the defaults.
+            (window, clock, sample rate and noise) is the environment's (``phm_config``), and it runs
+            without the model-fit test (``PHMConfig.fit``: these environments' episodes stay as they
+            were). None: the defaults.
     """
 
     step_seconds: float = 1.0
@@ -98,8 +100,7 @@ class EnvConfig:
     def phm_config(self) -> PHMConfig:
         """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
-        # the model-fit test is off in the v0 environments, whose episodes stay as they were
-        return dataclasses.replace(self.phm or PHMConfig(fit=ModelFitConfig(enabled=False)), timing=timing)
+        return dataclasses.replace(self.phm or PHMConfig(), timing=timing, fit=ModelFitConfig(enabled=False))
 
 
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
