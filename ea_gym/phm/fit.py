@@ -19,6 +19,7 @@ not tested and gives its diagnosis as before).
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -26,6 +27,13 @@ import numpy as np
 from scipy.stats import chi2
 
 from ea_gym.phm.config import ChainTiming, ModelFitConfig
+
+
+@functools.lru_cache(maxsize=256)
+def chi_square_band(dof: float, probability: float) -> tuple[float, float]:
+    """The central ``probability`` interval of a chi-square with ``dof`` degrees of freedom, divided by ``dof``."""
+    tail = 0.5 * (1.0 - probability)
+    return float(chi2.ppf(tail, dof)) / dof, float(chi2.isf(tail, dof)) / dof
 
 
 @dataclass(frozen=True)
@@ -113,11 +121,13 @@ class ModelFitTest:
         self.nis[rows, slot], self.dof[rows, slot] = step.nis, step.dof
         self.filled += 1
         full = self.filled >= self.steps
-        dof = self.dof.sum(axis=1)
-        statistic = np.where(full, self.nis.sum(axis=1) / np.maximum(dof, 1.0), np.nan)
-        tail = 0.5 * (1.0 - self.config.probability)
-        low = np.where(full, chi2.ppf(tail, dof) / np.maximum(dof, 1.0), np.nan)
-        high = np.where(full, self.config.tolerance * chi2.isf(tail, dof) / np.maximum(dof, 1.0), np.nan)
+        dof = np.maximum(self.dof.sum(axis=1), 1.0)
+        statistic = np.where(full, self.nis.sum(axis=1) / dof, np.nan)
+        # every system's window has the same terms, as a rule: one band for each distinct count
+        counts, which = np.unique(dof, return_inverse=True)
+        bands = np.array([chi_square_band(float(count), self.config.probability) for count in counts])[which.reshape(-1)]
+        low = np.where(full, bands[:, 0], np.nan)
+        high = np.where(full, self.config.tolerance * bands[:, 1], np.nan)
         above = full & (statistic > high)
         within = full & ~above
         # a run of steps on one side starts when the side changes
