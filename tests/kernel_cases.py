@@ -492,7 +492,7 @@ def running_filters(rng: np.random.Generator, bank: FilterBank, n: int) -> Filte
     P = np.zeros((n, 3, NX + 2, NX + 2))
     P[..., np.arange(NX), np.arange(NX)] = 1e-4
     P[:, 1:, NX, NX], P[:, 1:, NX + 1, NX + 1] = 1e-3, 1e-6
-    return FilterStates(np.array([False, True, True])[:n], np.array([0.0, 1.8, 0.2])[:n], z, P, rng.standard_normal((n, 3)))
+    return FilterStates(np.array([False, True, True])[:n], np.array([0.0, 1.8, 0.2])[:n], z, P, rng.standard_normal((n, 3)), np.full((n, 3), 9.0))
 
 
 TRACKING_TOLERANCE = {"rtol": 1e-7, "atol": 1e-10}  # the filter bank's lanes sum in another order
@@ -512,7 +512,14 @@ def _(rng: np.random.Generator) -> Case:
     bank = filter_bank(rng)
     variance = rng.uniform(1e-6, 1e-4, (2, NX))
     return Case((bank, SETTINGS, np.array([H, 0.0]), 1, tracked_signals(rng, 3), variance, running_filters(rng, bank, 3), (0.0,) * NX, (0.0,) * NW),
-                **TRACKING_TOLERANCE)
+                **TRACKING_TOLERANCE, check=step_nis_written)
+
+
+def step_nis_written(got: object, args: tuple) -> None:
+    """``track_filters``' normalized innovations squared: the step's sum for systems 1 and 2, positive; system 0's untouched."""
+    nis = args[6].nis
+    np.testing.assert_array_equal(nis[0], 9.0)
+    assert (nis[1:] > 0).all() and (nis[1:] != 9.0).all()
 
 
 @case("tracking.chebyshev_matrices")

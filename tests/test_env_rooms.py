@@ -21,7 +21,7 @@ from ea_gym.env.events import (
     parse_event,
 )
 from ea_gym.env.observations import OBSERVATION_BOUND, PARAMETER_POSITION_BOUNDS
-from ea_gym.phm import ChainTiming, IsolationConfig, PHMConfig
+from ea_gym.phm import ChainTiming, IsolationConfig, ModelFitConfig, PHMConfig
 
 ENV_ID = "ea_gym/SpringMassDamper-v0"
 
@@ -61,9 +61,11 @@ def test_env_config_overrides_and_phm_settings():
     with pytest.raises(TypeError, match="unexpected keyword argument 'speed'"):
         env_config(base, speed=2)
     chain = EnvConfig(step_seconds=5.0, window_seconds=1.0, noise=0.02).phm_config
-    assert chain == PHMConfig(timing=ChainTiming(step=1.0, step_time=5.0, sample_rate=100.0, noise=0.02))
+    no_fit = ModelFitConfig(enabled=False)  # the v0 environments run without the model-fit test
+    assert chain == PHMConfig(timing=ChainTiming(step=1.0, step_time=5.0, sample_rate=100.0, noise=0.02), fit=no_fit)
     custom = EnvConfig(phm=PHMConfig(isolation=IsolationConfig(frame=10.0), timing=ChainTiming(noise=0.5))).phm_config
     assert custom.isolation.frame == 10.0 and custom.timing.noise == 0.01  # the env's noise is the chain's
+    assert custom.fit == no_fit
 
 
 def test_a_config_and_its_keywords_give_the_same_episode():

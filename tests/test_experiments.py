@@ -161,6 +161,14 @@ def check_joint_filter(out: Path, stdout: str) -> None:
     assert "| k+b | b | yes |" in (out / "table.md").read_text()
 
 
+def check_model_fit(out: Path, stdout: str) -> None:
+    result = read_json(out / "results.json")
+    assert [run["case"] for run in result["runs"]] == ["healthy", "unit", "time_base", "form"]
+    assert all(run["passed"] for run in result["runs"])  # the healthy record fits, each misfit is said so
+    assert [row["scenario"] for row in result["scenarios"]] == ["mass_m_ramp"] and result["scenarios"][0]["on"]["ok"] is True
+    assert (out / "table.md").is_file()
+
+
 def check_rllib_ppo(out: Path, stdout: str) -> None:
     runs = read_json(out / "summary.json")["runs"]
     assert set(runs) == {"vector_entry_point", "sync"} and all(run["episodes"]["episodes_other_length"] == 0 for run in runs.values())
@@ -199,6 +207,7 @@ RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "studies/estimates_in_env.py": (("--out", "OUT"), check_estimates_in_env),
     "studies/from_scratch_diagnosis.py": (("--out", "OUT/diagnosis.json"), check_from_scratch_diagnosis),
     "studies/joint_filter.py": (("--out", "OUT"), check_joint_filter),
+    "studies/model_fit.py": (("--out", "OUT"), check_model_fit),
     "studies/tracking_accuracy.py": ((), printed("N =   1 systems", "N =   4 systems")),
 }
 

@@ -35,7 +35,7 @@ def reference_step(est: TrackingEstimator, signals: StepSignals) -> ParameterEst
     """The estimator's step by ``reference.track_step`` on its own arrays."""
     n, D = len(signals.t), len(est.degradable)
     outputs = TrackOutputs(np.empty((6, n, D)), np.empty((n, D + 1)))
-    filters = FilterStates(est.started, est.clock, est.z, est.P, est.log_likelihood)
+    filters = FilterStates(est.started, est.clock, est.z, est.P, est.log_likelihood, est.nis)
     bank, settings = bank_and_settings(est)
     nx = signals.measured.shape[1]
     sizes = (0.0,) * nx, (0.0,) * (bank.hypotheses.coefficients.shape[3] - nx)  # unused by the reference, the kernels' loop bounds
@@ -81,6 +81,7 @@ def test_kernel_matches_numpy_reference() -> None:
     np.testing.assert_allclose(est.z, numpy_form.z, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(est.P, numpy_form.P, rtol=1e-8, atol=1e-10 * np.abs(numpy_form.P).max())
     np.testing.assert_allclose(est.log_likelihood, numpy_form.log_likelihood, rtol=1e-10)
+    np.testing.assert_allclose(est.nis, numpy_form.nis, rtol=1e-10)
 
 
 def test_compiled_step_matches_numpy_around_the_filter_bank(monkeypatch: pytest.MonkeyPatch) -> None:

@@ -76,6 +76,9 @@ class FilterStates(NamedTuple):
     P: np.ndarray
     #: (N, H) the log-likelihoods.
     log_likelihood: np.ndarray
+    #: (N, H) each filter's normalized innovations squared (innovation^2 / its predicted variance),
+    #: summed over the channels and samples of its last step.
+    nis: np.ndarray
 
 
 class TrackOutputs(NamedTuple):

@@ -5,7 +5,8 @@ unit/s)]. Between samples x follows the plant's own exact discretization x' = Ph
 (w: the input's cubic Hermite coefficients over the interval), read off a Chebyshev interpolant in theta
 with its derivative, theta' = theta + h drift, drift' = drift; the measurement is y = g(theta) x (gain
 1/theta on the momentum of the hypothesis's own I element). Every filter adds each innovation's
-log-density to its log-likelihood, decayed by ``forget`` per sample.
+log-density to its log-likelihood, decayed by ``forget`` per sample, and keeps its normalized innovations
+squared summed over the step (the model-fit test's statistic, ``ea_gym.phm.fit``).
 
 Reference (the specification in plain numpy): ``ea_gym._kernels.reference.tracking``. The arguments
 travel in records (``ea_gym._kernels.filter_records``; ``BlockRows``, ``layout``'s).
@@ -210,7 +211,7 @@ def track_step(
     settings, filters = FilterSettings(*settings), FilterStates(*filters)
     signals, outputs = TrackedSignals(*signals), TrackOutputs(*outputs)
     measured, t, h = signals.measured, signals.t, settings.h
-    started, clock, z, P, log_likelihood = filters
+    started, clock, z, P, log_likelihood, _ = filters
     nx, samples = measured.shape[1], measured.shape[2]
     variance = np.empty((stop - start, nx))
     drift_time = np.empty(stop - start)
@@ -257,7 +258,7 @@ def track_filters(
     coefficients, terms, lo, hi, gain, own, _ = bank.hypotheses
     q = bank.process_noise
     measured, load, load_rate, _ = signals
-    z, P, log_likelihood = filters.z, filters.P, filters.log_likelihood
+    z, P, log_likelihood, nis = filters.z, filters.P, filters.log_likelihood, filters.nis
     state_noise, forget, h = settings.state_noise, settings.forget, settings.h
     n_hyp = coefficients.shape[0]
     nx, nw = len(states), len(inputs)
@@ -287,7 +288,7 @@ def track_filters(
     block = np.empty(layout(nx, nw).rows * LANES)
     value, slope, basis = np.empty((nx, nx + nw)), np.empty((nx, nx + nw)), np.empty((2, coefficients.shape[1]))
     lane_system = np.empty(LANES, dtype=np.int64)
-    density = np.empty((samples, LANES))
+    density, squares = np.empty((samples, LANES)), np.empty((samples, LANES))
     for first in list(range(0, n_full, LANES)) + list(range(n_full, listed.shape[0], LANES)):
         fixed = first >= n_full
         lanes = min(LANES, (listed.shape[0] if fixed else n_full) - first)
@@ -299,9 +300,9 @@ def track_filters(
             chebyshev_matrices(coefficients[f], terms[f], lo[f], hi[f], z[offset + s, f, nx], value, slope, basis)
             load_lane(block, b, z[offset + s, f], P[offset + s, f], value, slope, gain[f], variance[s], q[f], drift_time[s], lo[f], hi[f], own[f], nw)
         if fixed:
-            filter_samples(block, lanes, lane_system, W, Y, state_noise, density, states, states, inputs)
+            filter_samples(block, lanes, lane_system, W, Y, state_noise, density, squares, states, states, inputs)
         else:
-            filter_samples(block, lanes, lane_system, W, Y, state_noise, density, states, states + (0.0, 0.0), inputs)
+            filter_samples(block, lanes, lane_system, W, Y, state_noise, density, squares, states, states + (0.0, 0.0), inputs)
         for b in range(lanes):
             s, f = listed[first + b]
             row = offset + s
@@ -309,10 +310,11 @@ def track_filters(
                 z[row, f, a] = block[at(a, b)]
                 for c in range(n):
                     P[row, f, a, c] = block[at(n + a * n + c, b)]
-            likelihood = log_likelihood[row, f]
+            likelihood, total = log_likelihood[row, f], 0.0
             for k in range(1, samples):
                 likelihood = forget * likelihood + density[k, b]
-            log_likelihood[row, f] = likelihood
+                total += squares[k, b]
+            log_likelihood[row, f], nis[row, f] = likelihood, total
 
 
 @numba.njit(cache=True)
@@ -388,11 +390,12 @@ def load_lane(
 @numba.njit(cache=True, error_model="numpy")
 def filter_samples(
     block: np.ndarray, lanes: int, lane_system: np.ndarray, W: np.ndarray, Y: np.ndarray, state_noise: float, density: np.ndarray,
-    states: tuple[float, ...], moving: tuple[float, ...], inputs: tuple[float, ...],
+    squares: np.ndarray, states: tuple[float, ...], moving: tuple[float, ...], inputs: tuple[float, ...],
 ) -> None:
     """A block of filters (rows as ``layout`` says; lane b a filter of system lane_system[b]) over
     samples 1..L of W (L + 1, nw, S) and Y (L + 1, nx, S), in place; each sample's innovation
-    log-density per lane to density[k, b].
+    log-density per lane to density[k, b] and its normalized innovations squared (summed over the
+    channels) to squares[k, b].
 
     A filter's state is z = [x (nx = len(states)), theta, drift]; only the first m = len(moving) rows
     move: n, or nx for a fixed parameter's filter (``parameter_fixed``), on whose other rows the
@@ -414,11 +417,13 @@ def filter_samples(
         propagate_covariance(block, lanes, states, moving, inputs)
         measurement_update(block, lanes, states, moving, inputs)
         for b in range(lanes):  # the log-densities apart: the logarithm is no vector instruction here
-            log_density = 0.0
+            log_density, square = 0.0, 0.0
             for i in range(nx):
                 variance, v = block[at(VAR + i, b)], block[at(VN + i, b)]
-                log_density -= 0.5 * (math.log(variance) + LOG_2PI + v * v * variance)
-            density[k, b] = log_density
+                normalized = v * v * variance  # innovation^2 / its variance
+                log_density -= 0.5 * (math.log(variance) + LOG_2PI + normalized)
+                square += normalized
+            density[k, b], squares[k, b] = log_density, square
 
 
 @numba.njit(cache=True, error_model="numpy")

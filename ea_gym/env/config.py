@@ -10,7 +10,7 @@ from typing import Any
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
-from ea_gym.phm import ChainTiming, PHMConfig
+from ea_gym.phm import ChainTiming, ModelFitConfig, PHMConfig
 
 OBS_MODES = ("phm", "sensors", "oracle")
 #: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
@@ -40,7 +40,9 @@ class EnvConfig:
         load_std: range (low, high) of the random loads' std, fraction of
             ``SystemModel.random_load_scale`` (the nominal load unless the model gives a scale).
         phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
-            (window, clock, sample rate and noise) is the environment's (``phm_config``). None: the defaults.
+            (window, clock, sample rate and noise) is the environment's (``phm_config``), and it runs
+            without the model-fit test (``PHMConfig.fit``: these environments' episodes stay as they
+            were). None: the defaults.
     """
 
     step_seconds: float = 1.0
@@ -99,7 +101,7 @@ class EnvConfig:
     def phm_config(self) -> PHMConfig:
         """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
-        return dataclasses.replace(self.phm or PHMConfig(), timing=timing)
+        return dataclasses.replace(self.phm or PHMConfig(), timing=timing, fit=ModelFitConfig(enabled=False))
 
 
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:

@@ -3,7 +3,8 @@
 monitor (``ea_gym.diagnosis.monitor``) -> :mod:`~ea_gym.phm.detection` -> :mod:`~ea_gym.phm.isolation`
 (network, balance evidence) -> :mod:`~ea_gym.phm.estimation` (the ``ParameterEstimator`` seam; the EA
 inversion of :mod:`~ea_gym.phm.inversion_estimator`, the tracking filters of :mod:`~ea_gym.phm.tracking`,
-each registered with its prognosis in :mod:`~ea_gym.phm.registry`) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
+each registered with its prognosis in :mod:`~ea_gym.phm.registry`) -> :mod:`~ea_gym.phm.fit` (whether the
+model explains the data at all) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
 :mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.config` holds each stage's settings and
 :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
 runs scenarios and recorded signals through a chain (whole, or streamed as they arrive: ``StreamingChain``);
@@ -18,11 +19,13 @@ from ea_gym.phm.config import (
     InversionConfig,
     IsolationConfig,
     JointFilterConfig,
+    ModelFitConfig,
     PHMConfig,
     TrackingConfig,
 )
 from ea_gym.phm.detection import calibrate_thresholds, relative_residuals
 from ea_gym.phm.estimation import ParameterEstimates, ParameterEstimator, StepSignals
+from ea_gym.phm.fit import InnovationSource, ModelFit, ModelFitTest, StepInnovations
 from ea_gym.phm.harness import (
     ChainRun,
     StreamingChain,
@@ -71,11 +74,16 @@ __all__ = [
     "JointFilterConfig",
     "ExtrapolationConfig",
     "HealthStatus",
+    "InnovationSource",
+    "ModelFit",
+    "ModelFitConfig",
+    "ModelFitTest",
     "PHMChain",
     "PHMConfig",
     "ParameterEstimates",
     "ParameterEstimator",
     "PrognosisStage",
+    "StepInnovations",
     "StepSignals",
     "StreamingChain",
     "TrackingConfig",

@@ -3,8 +3,9 @@
 Each ``update`` takes one step of signals (measured, reference, load) for every system and passes it
 through the stages: the monitor (EA, EAI and residuals of every element), detection (the alarm),
 the isolation network, the parameter estimator (every degradable parameter, each as if it alone were
-faulty), the fusion of their evidence (the suspect and the chain's belief) and the prognosis (the
-suspect's End of Life and RUL with an interval). It returns a :class:`HealthStatus`, the typed record
+faulty), the model-fit test on its innovations, the fusion of their evidence (the suspect and the
+chain's belief) and the prognosis (the suspect's End of Life and RUL with an interval). While the
+model is not known to fit the data, no part is isolated and no End of Life given. It returns a :class:`HealthStatus`, the typed record
 of the step that reporting reads. Each stage keeps its own per-system state.
 """
 
@@ -23,6 +24,7 @@ from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.detection import Detector
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals
+from ea_gym.phm.fit import ModelFit, ModelFitTest
 from ea_gym.phm.history import MonitorHistory
 from ea_gym.phm.isolation import Isolation
 from ea_gym.phm.prognosis import EndOfLife
@@ -47,7 +49,8 @@ class HealthStatus:
             full frame seen), (N,).
         diagnosis: the chain's belief ("none" = 1 before the alarm), (N, K): the network's running
             average since the alarm weighed by the estimator's and the energy balance's evidence.
-        isolated: class index of the isolated parameter, 0 while none, (N,).
+        isolated: class index of the isolated parameter, 0 while none (and while the model is not known
+            to fit: ``model_fit``), (N,).
         confidence: the suspect's share of the fault classes' belief, 0 while none, (N,); confident:
             at or above ``IsolationConfig.confidence`` (only then is an End of Life predicted).
         estimates: estimate of every degradable parameter, (N, D), each as if it alone were faulty.
@@ -58,6 +61,8 @@ class HealthStatus:
         eol, eol_low, eol_high: End of Life and interval (s), inf where none is predicted, (N,).
         end_of_life: each system's prediction with what it extrapolates (a trend fit or a tracked
             drift), None where none was made.
+        model_fit: the model-fit test's verdict ("model does not fit" instead of a diagnosis); None where
+            the test is off (``ModelFitConfig.enabled``) or the estimator has no innovations.
     """
 
     t: np.ndarray
@@ -83,6 +88,7 @@ class HealthStatus:
     eol_low: np.ndarray
     eol_high: np.ndarray
     end_of_life: Sequence[EndOfLife | None]
+    model_fit: ModelFit | None = None
 
     @property
     def rul(self) -> np.ndarray:
@@ -124,6 +130,8 @@ class PHMChain:
         # the estimator and the prognosis that reads it come together (``PHMConfig.estimator_kind``, ``ea_gym.phm.registry``)
         stages = make_stages(model, self.monitor, config, n_systems)
         self.estimator, self.prognosis = stages.estimator, stages.prognosis
+        self.innovations = stages.innovations if config.fit.enabled else None
+        self.fit = None if self.innovations is None else ModelFitTest(config.fit, timing, n_systems)
         self.isolation = Isolation(classifier, self.monitor, config.isolation, timing, self.classes, n_systems, stages.weights)
         self.frame_steps = self.isolation.frame_steps
         if tuple(self.estimator.degradable) != self.degradable:
@@ -145,6 +153,8 @@ class PHMChain:
         self.estimator.reset(systems)
         self.prognosis.reset(systems)
         self.monitor.reset(systems)
+        if self.fit is not None:
+            self.fit.reset(systems)
 
     def record_adjustment(self, systems: np.ndarray, parameters: np.ndarray, changes: np.ndarray) -> None:
         """Log maintenance that moved degradable parameter ``parameters[k]`` (index into ``degradable``) of
@@ -176,16 +186,22 @@ class PHMChain:
         fusion = self.isolation.fuse(alarm, estimates.log_evidence, estimates.estimated, self.isolation.balance_evidence(history, alarm))
         if len(fusion.restarted):  # most steps none: nothing to tell the estimator
             self.estimator.restart(fusion.restarted, fusion.isolated[fusion.restarted] - 1)
-        prognosis = self.prognosis.update(estimates, fusion.isolated, fusion.confident, history.time)
+        isolated, confidence, confident = fusion.isolated, fusion.confidence, fusion.confident
+        model_fit = None
+        if self.fit is not None and self.innovations is not None:
+            model_fit = self.fit.update(self.innovations.innovations(), history.time)
+            withheld = model_fit.withheld  # "the model does not fit" (or not yet known) instead of a diagnosis
+            isolated, confidence, confident = np.where(withheld, 0, isolated), np.where(withheld, 0.0, confidence), confident & ~withheld
+        prognosis = self.prognosis.update(estimates, isolated, confident, history.time)
         ea, ea_ref, eai, eai_ref = self._activity_index(window)
         return HealthStatus(
             t=history.time.copy(), ea=ea, ea_reference=ea_ref, residual=ea - ea_ref, sub_residual=window.ea - window.ea_reference,
             eai=eai, eai_reference=eai_ref, statistic=statistic, alarm=alarm.copy(),
             detection_time=self.detector.state.detection_time.copy(), probabilities=probabilities,
-            counted=self.isolation.counted(history, alarm), diagnosis=fusion.belief, isolated=fusion.isolated,
-            confidence=fusion.confidence, confident=fusion.confident, estimates=estimates.value, estimation=estimates,
+            counted=self.isolation.counted(history, alarm), diagnosis=fusion.belief, isolated=isolated,
+            confidence=confidence, confident=confident, estimates=estimates.value, estimation=estimates,
             estimate=prognosis.estimate, eol=prognosis.eol, eol_low=prognosis.eol_low, eol_high=prognosis.eol_high,
-            end_of_life=prognosis.end_of_life,
+            end_of_life=prognosis.end_of_life, model_fit=model_fit,
         )
 
     def _activity_index(self, window: MonitorWindow) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

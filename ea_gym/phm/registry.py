@@ -24,13 +24,14 @@ and attributes) and one registration line on its builder. A particle filter, say
     class ParticleFilter:  # each degradable parameter and its drift followed with particles
         def __init__(self, model, timing, n_systems): ...
         # ParameterEstimator's attributes and methods: degradable, lag, warmup_steps, reset,
-        # record_adjustment, restart, update; and, for DriftPrognosis, diffusion (D,)
+        # record_adjustment, restart, update; for DriftPrognosis, diffusion (D,); for the model-fit
+        # test, innovations() (ea_gym.phm.fit.InnovationSource)
 
     @register_estimator("particle_filter")
     def particle_filter_stages(model, monitor, config, n_systems):
         estimator = ParticleFilter(model, config.timing, n_systems)
         prognosis = DriftPrognosis(model, estimator.degradable, config.extrapolation, estimator.diffusion, n_systems)
-        return EstimationStages(estimator, prognosis)
+        return EstimationStages(estimator, prognosis, innovations=estimator)
 
 Once the module is imported, ``PHMConfig(estimator_kind="particle_filter")`` builds chains (and
 environments: ``gym.make(..., phm=PHMConfig(estimator_kind="particle_filter"))``) with it. The
@@ -47,18 +48,22 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig
 from ea_gym.phm.estimation import ParameterEstimator
+from ea_gym.phm.fit import InnovationSource
 from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import PrognosisStage
 
 
 @dataclass(frozen=True)
 class EstimationStages:
-    """An estimator kind's stages: the parameter estimator, the prognosis that reads its output, and how
-    much the isolation's other evidence (network, energy balance) counts beside its evidence."""
+    """An estimator kind's stages: the parameter estimator, the prognosis that reads its output, how
+    much the isolation's other evidence (network, energy balance) counts beside its evidence, and where
+    the model-fit test (:mod:`~ea_gym.phm.fit`) reads the innovations (usually the estimator; None: it has
+    none, and the fit is not tested)."""
 
     estimator: ParameterEstimator
     prognosis: PrognosisStage
     weights: EvidenceWeights = EvidenceWeights()
+    innovations: InnovationSource | None = None
 
 
 #: builds an estimator kind's stages from the model, the chain's monitor, the chain's settings and N

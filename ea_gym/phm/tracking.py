@@ -53,6 +53,7 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import PHMConfig, TrackingConfig
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals, checked_arguments, checked_signals
+from ea_gym.phm.fit import StepInnovations
 from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import DriftPrognosis
 from ea_gym.phm.registry import EstimationStages, register_estimator
@@ -183,6 +184,8 @@ class TrackingEstimator:
         self.z = np.zeros((n_systems, len(nominal), nx + 2))
         self.P = np.zeros((n_systems, len(nominal), nx + 2, nx + 2))
         self.log_likelihood = np.zeros((n_systems, len(nominal)))
+        self.nis = np.zeros((n_systems, len(nominal)))  # each filter's over the last step
+        self.terms = 0  # the NIS sums' terms: channels x samples of the last step
         self.started = np.zeros(n_systems, dtype=bool)
         self.clock = np.zeros(n_systems)  # the time (s) the filters describe, the end of the last step
         self.lag = 0.0  # its estimates describe the step's end
@@ -217,20 +220,22 @@ class TrackingEstimator:
         over the difference before the signals (see the module docstring). Compiled (``track``), step
         and estimates alike.
         """
-        n = self.n
-        measured, load, load_rate, t = checked_signals(signals, n, self.model.state_space.n_states)
+        n, nx = self.n, self.model.state_space.n_states
+        measured, load, load_rate, t = checked_signals(signals, n, nx)
         hyp, config = self.hypotheses, self.config
         estimates, evidence = np.empty((6, n, len(self.degradable))), np.empty((n, len(hyp.nominal)))
 
         bank = FilterBank(hyp, self.process_noise, self.prior)
         settings = FilterSettings(config.state_noise, self.forget, self.h, self.noise**2)
-        step, filters = TrackedSignals(measured, load, load_rate, t), FilterStates(self.started, self.clock, self.z, self.P, self.log_likelihood)
+        step = TrackedSignals(measured, load, load_rate, t)
+        filters = FilterStates(self.started, self.clock, self.z, self.P, self.log_likelihood, self.nis)
         outputs = TrackOutputs(estimates, evidence)
 
         def track_rows(start: int, stop: int) -> None:
             track(bank, settings, start, stop, step, filters, outputs)
 
         over_rows(track_rows, n)
+        self.terms = nx * (measured.shape[2] - 1)
         value, variance, drift, drift_variance, covariance, time = estimates
         return ParameterEstimates(
             value=value, variance=variance, drift=drift, drift_variance=drift_variance, covariance=covariance, log_evidence=evidence,
@@ -250,6 +255,12 @@ class TrackingEstimator:
             estimated=self._estimated,
             time=t[:, None].repeat(len(self.degradable), axis=1),
         )
+
+    def innovations(self) -> StepInnovations:
+        """The last step's NIS of each system's hypothesis with the largest log-likelihood (the isolation
+        evidence: the one that explains the data best), and its terms (``InnovationSource``)."""
+        best = np.argmax(self.log_likelihood, axis=1)
+        return StepInnovations(nis=self.nis[np.arange(self.n), best], dof=np.full(self.n, float(self.terms)))
 
     @property
     def diffusion(self) -> np.ndarray:
@@ -276,4 +287,4 @@ def tracking_stages(model: SystemModel, monitor: Monitor, config: PHMConfig, n_s
     its drift carried to the limits (``config.extrapolation``)."""
     estimator = TrackingEstimator(model, config.timing.sample_rate, config.timing.noise, n_systems, config=config.tracking)
     prognosis = DriftPrognosis(model, estimator.degradable, config.extrapolation, estimator.diffusion, n_systems)
-    return EstimationStages(estimator, prognosis, TRACKING_WEIGHTS)
+    return EstimationStages(estimator, prognosis, TRACKING_WEIGHTS, innovations=estimator)

@@ -15,7 +15,7 @@ from ea_gym.reporting.figures import (
     plot_signals,
     plot_time_frequency,
 )
-from ea_gym.reporting.report import write_phm_outputs, write_phm_report
+from ea_gym.reporting.report import fit_text, write_phm_outputs, write_phm_report
 from ea_gym.reporting.results import ALPHA, ESTIMATION_START, LAMBDA, MIN_PHASE_PREDICTIONS, chain_results
 
 __all__ = [
@@ -28,6 +28,7 @@ __all__ = [
     "RECORDED_CAPTIONS",
     "TRUTH_FIGURES",
     "chain_results",
+    "fit_text",
     "plot_estimate",
     "plot_estimate_error",
     "plot_rul",

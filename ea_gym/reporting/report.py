@@ -42,6 +42,8 @@ def isolation_text(results: dict) -> str:
     if isolated is not None:
         return str(isolated)
     isolation = results.get("isolation") or {}
+    if isolation.get("state") in ("model does not fit", "model fit not yet known"):
+        return f"- ({isolation['state']}: no part is isolated)"
     if isolation.get("state") != "undecided":
         return "- (no alarm)"
     return (f"undecided: no parameter reaches {isolation['threshold']:.0%} of the fault belief "
@@ -63,10 +65,28 @@ def _latest_rows(results: dict) -> list[tuple[str, str]]:
     return rows
 
 
+def fit_text(results: dict) -> str:
+    """The model-fit verdict in one line (results' "model_fit")."""
+    fit = results.get("model_fit") or {}
+    if not fit.get("tested"):
+        return "model fit not tested (the test is off, or the estimator has no innovations)"
+    if fit["statistic"] is None:
+        return "model fit not yet known: the record is shorter than the test's window"
+    measured = f"NIS {fit['statistic']:.3g} per degree of freedom, band {fit['band'][0]:.3g}-{fit['band'][1]:.3g}"
+    if fit["ok"] is None:
+        return f"model fit not yet known ({measured}): no part is isolated and no End of Life given"
+    since = f", since {fit['since']:g} s" if fit["since"] is not None else ""
+    if fit["ok"]:
+        return f"the model fits the data ({measured}{since})"
+    return (f"the model does not fit the data ({measured}{since}): no part is isolated and no End of Life given; "
+            "check the load column's unit, the time column's sample rate and each C element's form")
+
+
 def _summary_rows(results: dict) -> list[tuple[str, str]]:
     measurements = results.get("run", {}).get("measurements")
     rows = [("recorded measurements (truth unknown: no errors against it)", str(measurements))] if measurements else []
     rows += [
+        ("model fit", fit_text(results)),
         ("detection time (s)", _fmt(results.get("detection_time"))),
         ("isolated parameter", isolation_text(results)),
         ("class probabilities (the chain's belief at the end, which isolates)", _probabilities(results.get("class_probabilities", {}))),

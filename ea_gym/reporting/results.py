@@ -52,16 +52,33 @@ def _isolation(status: HealthStatus, chain: PHMChain) -> dict[str, Any]:
     share of the fault classes' belief."""
     fault_belief = status.diagnosis[0, 1:]
     favoured = 1 + int(np.argmax(fault_belief))
+    fit = status.model_fit
     if not status.alarm[0]:
         state = "no alarm"
+    elif fit is not None and fit.withheld[0]:
+        state = "model does not fit" if fit.misfit[0] else "model fit not yet known"
     else:
         state = "isolated" if isolated_class(status) > 0 else "undecided"
+    named = state in ("isolated", "undecided")
     return {
         "state": state,
-        "favoured": chain.classes[favoured] if status.alarm[0] else None,
-        "confidence": float(fault_belief[favoured - 1] / max(float(fault_belief.sum()), TINY)) if status.alarm[0] else 0.0,
+        "favoured": chain.classes[favoured] if named else None,
+        "confidence": float(fault_belief[favoured - 1] / max(float(fault_belief.sum()), TINY)) if named else 0.0,
         "threshold": float(chain.config.isolation.confidence),
     }
+
+
+def model_fit_results(status: HealthStatus) -> dict[str, Any]:
+    """The model-fit test's verdict at ``status`` (:mod:`ea_gym.phm.fit`): "ok" true (the model fits), false
+    (it does not: no part isolated, no End of Life), None (not yet known, or not "tested": the test is off or
+    the estimator has no innovations); "statistic" the NIS per degree of freedom over the window, "band"
+    [low, high] its band, "since" when (s) the verdict was reached."""
+    fit = status.model_fit
+    if fit is None:
+        return {"ok": None, "statistic": None, "band": None, "since": None, "tested": False}
+    ok = True if fit.fits[0] else False if fit.misfit[0] else None
+    band = [float(fit.low[0]), float(fit.high[0])]
+    return {"ok": ok, "statistic": float(fit.statistic[0]), "band": band, "since": float(fit.since[0]), "tested": True}
 
 
 def _fault_onset(scenario: Scenario) -> float | None:
@@ -232,6 +249,8 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
         estimate: {"parameter", "t", "value"}: the isolated parameter's estimate at every step where
             the chain's estimator updated it (an alarm raised, and the parameter a hypothesis it
             follows), stamped at the time it describes; parameter None when none is isolated.
+        model_fit: {"ok", "statistic", "band", "since", "tested"} (:func:`model_fit_results`): whether the model
+            explains the data; while it does not, nothing is isolated and no End of Life given.
         eol_predictions: [{"t", "parameter", "eol", "limit", "rul", "rul_low", "rul_high"}] for every
             step with a finite End of Life (s) of a suspect the isolation was confident of; "parameter" is
             the one isolated at that step, "limit" "lower" or "upper".
@@ -265,6 +284,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
         "isolated_parameter": isolated_parameter,
         "class_probabilities": {name: float(p) for name, p in zip(chain.classes, last.diagnosis[0])},
         "isolation": _isolation(last, chain),
+        "model_fit": model_fit_results(last),
         "network_probabilities": {name: float(p) for name, p in zip(chain.classes, network)},
         "estimate": estimate,
         "eol_predictions": predictions,

@@ -73,10 +73,10 @@ def hermite_row(u0: Values, u1: Values, d0: Values, d1: Values, h: float) -> tup
 def filter_sample(
     bank: FilterBank, f: int, settings: FilterSettings, drift_time: float, M: np.ndarray, dM: np.ndarray, w: np.ndarray, y: np.ndarray,
     variance: np.ndarray, z: np.ndarray, P: np.ndarray,
-) -> float:
+) -> tuple[float, float]:
     """Filter f's prediction over one interval and update from the sample's measurements y (in place), M
-    its [Phi | Gamma] at its theta and dM its theta-slope; the innovations' log-density. The channels
-    update in turn, each linearised where the previous left the state."""
+    its [Phi | Gamma] at its theta and dM its theta-slope; the innovations' log-density and their
+    normalized squares' sum. The channels update in turn, each linearised where the previous left the state."""
     nx = len(y)
     hyp = bank.hypotheses
     g = hyp.gain[f].copy()
@@ -90,7 +90,7 @@ def filter_sample(
     z[:nx] = M[:, :nx] @ z[:nx] + M[:, nx:] @ w
     z[nx] += drift_time * z[nx + 1]
     P[:] = F @ P @ F.T + np.diag(np.concatenate([settings.state_noise * variance / g**2, bank.process_noise[f]]))
-    density = 0.0
+    density, squares = 0.0, 0.0
     for i in range(nx):
         H = np.zeros(nx + 2)
         H[i] = hyp.gain[f, i]
@@ -100,10 +100,11 @@ def filter_sample(
         S = H @ P @ H + variance[i]
         K = P @ H / S
         density -= 0.5 * (np.log(S) + np.log(2.0 * np.pi) + innovation**2 / S)
+        squares += innovation**2 / S
         z += K * innovation
         P -= np.outer(K, K) * S
     z[nx] = np.clip(z[nx], hyp.lo[f], hyp.hi[f])
-    return density
+    return density, squares
 
 
 def track_filters(
@@ -113,7 +114,8 @@ def track_filters(
     """Every hypothesis's filter of systems offset, offset + 1, ... over samples 1..L (in place): x' = M [x; w]
     with M = M0 + dM (theta - anchor), [Phi | Gamma] and its theta-slope read off the interpolant at the
     step's first theta (the anchor); theta' = theta + drift_time drift; each sample's log-density added to
-    the log-likelihood decayed by ``forget``. ``states`` and ``inputs`` (the kernel's sizes) are unused."""
+    the log-likelihood decayed by ``forget``, its normalized innovations squared summed over the step into
+    ``filters.nis``. ``states`` and ``inputs`` (the kernel's sizes) are unused."""
     nx = signals.measured.shape[1]
     hyp = bank.hypotheses
     for s, f in np.ndindex(len(drift_time), len(hyp.nominal)):
@@ -122,13 +124,15 @@ def track_filters(
         anchor = z[nx]
         rows, columns = hyp.coefficients.shape[2], hyp.coefficients.shape[3]
         M0, dM = np.empty((rows, columns)), np.empty((rows, columns))
+        filters.nis[m, f] = 0.0
         chebyshev_matrices(hyp.coefficients[f], hyp.terms[f], hyp.lo[f], hyp.hi[f], anchor, M0, dM, np.empty(0))
         for k in range(1, signals.measured.shape[2]):
             w = np.ones(columns - nx)  # the constant sources' column, where there is one, 1
             w[:4] = hermite_row(signals.load[m, k - 1], signals.load[m, k], signals.load_rate[m, k - 1], signals.load_rate[m, k], settings.h)
             M = M0 + dM * (z[nx] - anchor)
-            density = filter_sample(bank, f, settings, drift_time[s], M, dM, w, signals.measured[m, :, k], variance[s], z, P)
+            density, squares = filter_sample(bank, f, settings, drift_time[s], M, dM, w, signals.measured[m, :, k], variance[s], z, P)
             filters.log_likelihood[m, f] = settings.forget * filters.log_likelihood[m, f] + density
+            filters.nis[m, f] += squares
 
 
 def track_step(
