@@ -14,7 +14,7 @@ from scipy.stats import chi2
 from ea_gym.cli import main
 from ea_gym.diagnosis.training import shipped_classifier_path
 from ea_gym.models import get_model
-from ea_gym.phm import ChainTiming, ModelFitConfig, ModelFitTest, StepInnovations, StepSignals, TrackingEstimator
+from ea_gym.phm import ChainTiming, JointFilter, ModelFitConfig, ModelFitTest, StepInnovations, StepSignals, TrackingEstimator
 
 RATE = 100.0  # Hz
 NOISE = 0.01
@@ -69,11 +69,15 @@ def record(system: str, duration: float, rng: np.random.Generator, rate: float =
     return t, load, rate_of_load, noisy
 
 
-def step_nis(system: str, load_scale: float) -> np.ndarray:
-    """The tracking filters' NIS per degree of freedom at every 1 s step of a 30 s record of ``system``, the load
-    the filters read multiplied by ``load_scale``."""
+#: the estimators that offer their innovations to the test (``InnovationSource``), by kind
+SOURCES = {"tracking": TrackingEstimator, "joint": JointFilter}
+
+
+def step_nis(system: str, load_scale: float, kind: str = "tracking") -> np.ndarray:
+    """The NIS per degree of freedom of the estimator of ``kind`` at every 1 s step of a 30 s record of ``system``,
+    the load the estimator reads multiplied by ``load_scale``."""
     t, load, load_rate, signals = record(system, 30.0, np.random.default_rng(3))
-    estimator = TrackingEstimator(get_model(system), RATE, NOISE)
+    estimator = SOURCES[kind](get_model(system), RATE, NOISE)
     step, ratios = round(RATE), []
     for start in range(0, len(t) - step, step):
         part = slice(start, start + step + 1)
@@ -84,15 +88,17 @@ def step_nis(system: str, load_scale: float) -> np.ndarray:
     return np.array(ratios)
 
 
+@pytest.mark.parametrize("kind", sorted(SOURCES))
 @pytest.mark.parametrize("system", sorted(LINEAR))
-def test_an_exact_model_with_white_noise_has_nis_at_its_degrees_of_freedom(system: str) -> None:
-    ratios = step_nis(system, 1.0)[2:]  # the filters' start-up left out
+def test_an_exact_model_with_white_noise_has_nis_at_its_degrees_of_freedom(system: str, kind: str) -> None:
+    ratios = step_nis(system, 1.0, kind)[2:]  # the filters' start-up left out
     band = chi2.ppf([0.0005, 0.9995], 200 * len(ratios)) / (200 * len(ratios))  # 2 signals x 100 samples per step
     assert band[0] < ratios.mean() < band[1] * 1.05, ratios.mean()
 
 
-def test_a_load_read_1000_times_too_small_falls_far_outside_the_band() -> None:
-    ratios = step_nis("spring_mass_damper", 1e-3)[2:]
+@pytest.mark.parametrize("kind", sorted(SOURCES))
+def test_a_load_read_1000_times_too_small_falls_far_outside_the_band(kind: str) -> None:
+    ratios = step_nis("spring_mass_damper", 1e-3, kind)[2:]
     assert ratios.min() > 100 * chi2.isf(0.005, 200) / 200
 
 

@@ -45,6 +45,7 @@ from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
 from ea_gym.phm.config import JointFilterConfig, PHMConfig
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals, checked_arguments, checked_signals
+from ea_gym.phm.fit import StepInnovations
 from ea_gym.phm.isolation import EvidenceWeights
 from ea_gym.phm.prognosis import DriftPrognosis
 from ea_gym.phm.registry import EstimationStages, register_estimator
@@ -263,6 +264,13 @@ class JointFilter:
             degrading=degrading,
         )
 
+    def innovations(self) -> StepInnovations:
+        """The last step's normalized innovations squared, y^T S^-1 y summed over its samples, and their
+        terms (samples x signals) (``ea_gym.phm.fit.InnovationSource``)."""
+        y, S = self.innovation, self.innovation_covariance
+        nis = np.einsum("nli,nli->n", y, np.linalg.solve(S, y[..., None])[..., 0]) if y.shape[1] else np.zeros(self.n)
+        return StepInnovations(nis=nis, dof=np.full(self.n, float(y.shape[1] * y.shape[2])))
+
     @property
     def diffusion(self) -> np.ndarray:
         """Each parameter's random walk as the filter models it, variance per second (unit^2/s), (D,): it goes on
@@ -282,4 +290,4 @@ def joint_stages(model: SystemModel, monitor: Monitor, config: PHMConfig, n_syst
     parameter's drift carried to its limits (``config.extrapolation``)."""
     estimator = JointFilter(model, config.timing.sample_rate, config.timing.noise, n_systems, config=config.joint)
     prognosis = DriftPrognosis(model, estimator.degradable, config.extrapolation, estimator.diffusion, n_systems)
-    return EstimationStages(estimator, prognosis, JOINT_WEIGHTS)
+    return EstimationStages(estimator, prognosis, JOINT_WEIGHTS, innovations=estimator)
