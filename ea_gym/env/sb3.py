@@ -18,6 +18,8 @@ class MaintenanceVecEnv(VecEnv):
     Same episodes as N ``BondGraphMaintenanceEnv`` in a ``DummyVecEnv`` seeded alike (``seed(s)`` gives
     system i the seed s + i), with SB3's conventions: finished episodes restart at once, the last
     observation is in ``info["terminal_observation"]`` and truncation in ``info["TimeLimit.truncated"]``.
+    Wrap it in SB3's ``VecMonitor``, as any ``VecEnv``, for the episodes' returns and lengths in
+    ``info["episode"]`` (SB3's logs and ``evaluate_policy`` read them there).
 
     Args:
         num_envs: N.
