@@ -4,7 +4,7 @@ folder), so nothing the documentation cites can rot; where it is cheap, what the
 A script that needs an optional extra skips where the extra is missing: progpy (compare_progpy.py) and
 torchrl (torchrl_check.py), which the ``dev`` extra installs, so CI runs them; Ray RLlib (rllib_ppo.py,
 ray_benchmark.py), which pins an older gymnasium: ``bash scripts/test_ray.sh`` runs those two in its own
-virtual environment.
+virtual environment; rl-zoo3 (rl_zoo3_check.py), where the ``zoo`` extra is installed.
 """
 
 from __future__ import annotations
@@ -36,6 +36,7 @@ EXTRAS = {
     "integrations/torchrl_check.py": "torchrl",
     "integrations/rllib_ppo.py": "ray.rllib",
     "integrations/ray_benchmark.py": "ray.rllib",
+    "integrations/rl_zoo3_check.py": "rl_zoo3",
 }
 #: what a smoke run must leave as it is: the committed results and what the packages ship
 KEPT = (EXPERIMENTS / "results", ROOT / "ea_gym" / "data", ROOT / "agents" / "data")
@@ -178,6 +179,41 @@ def check_ray_benchmark(out: Path, stdout: str) -> None:
     assert read_json(out / "summary.json")["all_equal_local"]
 
 
+def load_script(script: str):
+    """An experiments script as a module (its functions; ``main`` is not run)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(Path(script).stem, EXPERIMENTS / script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def check_rl_zoo3(out: Path, stdout: str) -> None:
+    summary = read_json(out / "summary.json")
+    assert summary["train"]["last_table"] and "Loading running average" in summary["enjoy"]["output"]  # the smoke ends no episode
+    assert (out / "summary.md").read_text() == load_script("integrations/rl_zoo3_check.py").render(summary)
+
+
+def test_the_figures_the_docs_show_are_the_committed_outputs_of_their_scripts():
+    """docs/results.md includes rl-zoo3's summary.md and CleanRL's JSON as their scripts wrote them: summary.md is
+    the rendering of the committed summary.json (figures such as fps come from the run, none typed by hand), and
+    CleanRL's mean costs are the means of its episodes' costs, with the command of its script."""
+    results = EXPERIMENTS / "results"
+    page = (ROOT / "docs" / "results.md").read_text()
+    assert "{include} ../experiments/results/rl_zoo3/summary.md" in page
+    assert "{literalinclude} ../experiments/results/cleanrl_ppo/cleanrl_ppo.json" in page
+    zoo = read_json(results / "rl_zoo3" / "summary.json")
+    assert (results / "rl_zoo3" / "summary.md").read_text() == load_script("integrations/rl_zoo3_check.py").render(zoo)
+    assert dict(zoo["train"]["last_table"])["fps"] in (results / "rl_zoo3" / "summary.md").read_text()
+    cleanrl = read_json(results / "cleanrl_ppo" / "cleanrl_ppo.json")
+    assert cleanrl["command"] == "python experiments/integrations/cleanrl_ppo.py"  # the default run, as committed
+    evaluation = cleanrl["evaluation"]
+    for policy in ("ppo_greedy", "carry_on"):
+        costs = evaluation[f"{policy}_costs"]
+        assert evaluation[f"{policy}_mean_cost"] == sum(costs) / len(costs)
+
+
 def printed(*texts: str) -> Callable[[Path, str], None]:
     """A check that the run printed ``texts``."""
 
@@ -200,6 +236,7 @@ RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "integrations/cleanrl_ppo.py": (("--out", "OUT"), check_cleanrl_ppo),
     "integrations/ray_benchmark.py": (("--out", "OUT"), check_ray_benchmark),
     "integrations/rllib_ppo.py": (("--out", "OUT"), check_rllib_ppo),
+    "integrations/rl_zoo3_check.py": (("--out", "OUT"), check_rl_zoo3),
     "integrations/torchrl_check.py": (("--out", "OUT"), check_torchrl),
     "studies/builtin_systems.py": (("--out", "OUT"), check_builtin_systems),
     "studies/compare_progpy.py": (("--out", "OUT"), check_compare_progpy),

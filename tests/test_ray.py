@@ -6,6 +6,7 @@ runner process whose episodes all end at the horizon.
 """
 
 import importlib.util
+import re
 from pathlib import Path
 
 import pytest
@@ -70,6 +71,27 @@ def test_ppo_on_an_env_runner_process_sees_whole_episodes(tmp_path, vectorize):
     assert summary["env_steps_sampled"] >= 200
     assert summary["episodes"] == {"episodes_at_horizon": summary["env_steps_sampled"] // 20, "episodes_failed": 0, "episodes_other_length": 0}
     assert summary["iterations"][-1]["episode_len_min"] == summary["iterations"][-1]["episode_len_max"] == 20
+
+
+def rllib_recipe() -> str:
+    """The RLlib block of docs/rl-libraries.md (a ``{code-block} python``: tests/test_docs.py runs only ``python`` blocks)."""
+    page = (Path(__file__).resolve().parents[1] / "docs" / "rl-libraries.md").read_text()
+    blocks = re.findall(r"^```\{code-block\} python\n(.*?)^```$", page, re.M | re.S)
+    assert len(blocks) == 1 and "PPOConfig" in blocks[0]
+    return blocks[0]
+
+
+@needs_rllib
+def test_the_rllib_recipe_of_the_docs_runs_as_written():
+    """docs/rl-libraries.md's RLlib recipe, run as written: RLlib's own env creation on an env runner process,
+    which imports ea_gym through the ``ea_gym:`` prefix of the id (gymnasium's ``module:id``), and RLlib's
+    FlattenObservations connector for the Dict observation (RLlib has no default encoder for it). Episodes of
+    the horizon's 20 steps, none of another length."""
+    namespace: dict[str, object] = {}
+    exec(compile(rllib_recipe(), "docs/rl-libraries.md[RLlib]", "exec"), namespace)
+    runners = namespace["result"]["env_runners"]  # type: ignore[index]
+    assert runners["num_env_steps_sampled_lifetime"] >= 80
+    assert runners["episode_len_min"] == runners["episode_len_max"] == 20
 
 
 @pytest.mark.skipif(HAS_RLLIB, reason="the message shown where ray is missing")

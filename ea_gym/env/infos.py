@@ -4,6 +4,11 @@ native vector and the stable-baselines3 environments.
 Keys: ``true_parameters`` (parameter name -> value), ``true_rul`` (s), ``cost`` (cost item -> the
 step's cost: each action kind's item, failure, lost production and the total), ``failed`` (a
 parameter left its safe limits this step), ``events`` (the step's events' texts, see ``ea_gym.env.events``).
+
+Layouts (``INFO_LAYOUTS``, the environments' ``info_layout``): ``"nested"`` (the default) as above;
+``"flat"`` for libraries that make a tensor of every info (TorchRL's ``GymEnv``), which can batch neither
+lists of texts nor nested dicts with their masks: one level of numbers, ``true_rul``, ``failed``,
+``cost_<item>`` and ``true_parameters_<name>``, and no ``events``.
 """
 
 from __future__ import annotations
@@ -22,6 +27,16 @@ def cost_items(kinds: Iterable[ActionKind]) -> tuple[str, ...]:
     then failure and lost production (which no order buys), then the total."""
     items = [kind.cost_item for kind in kinds if kind.cost_item is not None]
     return (*dict.fromkeys(items), "failure", "lost_production", "total")
+
+
+INFO_LAYOUTS = ("nested", "flat")
+
+
+def check_info_layout(layout: object) -> str:
+    """``layout`` if it is one of ``INFO_LAYOUTS``; a ValueError naming them otherwise."""
+    if not isinstance(layout, str) or layout not in INFO_LAYOUTS:
+        raise ValueError(f"info_layout must be one of {INFO_LAYOUTS}, got {layout!r}")
+    return layout
 
 
 #: the cost items of the environments' default action kinds (carry on, corrective action, replacement)
@@ -59,8 +74,12 @@ class StepInfo:
             [[] for _ in range(n)],
         )
 
-    def system(self, i: int) -> dict[str, Any]:
-        """The ``info`` of system i."""
+    def system(self, i: int, layout: str = "nested") -> dict[str, Any]:
+        """The ``info`` of system i, in ``layout`` (one of ``INFO_LAYOUTS``)."""
+        if layout == "flat":
+            return {"true_rul": self.true_rul.item(i), "failed": self.failed.item(i),
+                    **{f"cost_{key}": value.item(i) for key, value in self.costs.items()},
+                    **{f"true_parameters_{name}": value for name, value in zip(self.parameter_names, self.true_parameters[i].tolist())}}
         return {
             "true_parameters": dict(zip(self.parameter_names, self.true_parameters[i].tolist())),
             "true_rul": self.true_rul.item(i),  # item: the Python float (bool) at once, no numpy scalar between
@@ -82,14 +101,19 @@ class StepInfo:
             [theirs if chosen else ours for chosen, ours, theirs in zip(rows.tolist(), self.events, other.events)],
         )
 
-    def batched(self, mask: np.ndarray) -> dict[str, Any]:
+    def batched(self, mask: np.ndarray, layout: str = "nested") -> dict[str, Any]:
         """The vector environment's ``info`` for the systems in the boolean ``mask`` (N,), laid out as
         Gymnasium's ``VectorEnv._add_info`` lays out the single environments' infos: every key's values
         in an array over the N systems (zero, False or None where the mask is False), nested dicts
-        likewise, each key beside its ``_key`` mask. Empty when no system is in the mask."""
+        likewise, each key beside its ``_key`` mask. Empty when no system is in the mask. ``layout``: one of
+        ``INFO_LAYOUTS``, as the single environments' ``system`` lays them out."""
         rows = np.asarray(mask, dtype=bool)
         if not rows.any():
             return {}
+        if layout == "flat":
+            columns = {"true_rul": self.true_rul, **{f"cost_{key}": value for key, value in self.costs.items()},
+                       **{f"true_parameters_{name}": self.true_parameters[:, j] for j, name in enumerate(self.parameter_names)}}
+            return _with_masks({"failed": self.failed & rows, **{key: np.where(rows, value, 0.0) for key, value in columns.items()}}, rows)
         events = np.full(len(rows), None, dtype=object)
         for i in np.flatnonzero(rows).tolist():
             events[i] = [str(event) for event in self.events[i]]

@@ -14,12 +14,14 @@ from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.env.actions import DEFAULT_ACTION_KINDS, HandlerFactory
 from ea_gym.env.config import EnvConfig, env_config
 from ea_gym.env.core import MaintenanceCore
+from ea_gym.env.infos import check_info_layout
 from ea_gym.env.observations import Observation
+from ea_gym.env.specs import HorizonSpec
 from ea_gym.model_files import load_system
 from ea_gym.models import MODELS, ParameterError, SystemModel
 
 
-class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
+class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
     """
     ## Description
 
@@ -82,7 +84,8 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
 
     Termination when a parameter leaves its safe limits (unless `continue_after_failure=True`: then a
     forced replacement with `costs.failure_downtime` steps down, and the episode goes on). Truncation
-    after `horizon` steps.
+    after `horizon` steps, the environment's own (no TimeLimit wrapper); `env.spec.max_episode_steps` is
+    the horizon (`ea_gym.env.specs`).
 
     ## Arguments
 
@@ -106,6 +109,8 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
     - `render_mode`: `"rgb_array"` (recent EA, parameter estimate and RUL) or `"ansi"`.
     - `action_kinds`: the handlers of the action kinds in use, carrying on first (see `ea_gym.env.actions`);
       their order is the action table's.
+    - `info_layout`: `"nested"` (the default: the dicts and texts below) or `"flat"` (one level of numbers,
+      no events), for libraries that make a tensor of every info (TorchRL's `GymEnv`; `ea_gym.env.infos`).
 
     ## Version History
 
@@ -121,10 +126,12 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
         classifier: FaultClassifier | str | None = None,
         render_mode: str | None = None,
         action_kinds: Sequence[HandlerFactory] = DEFAULT_ACTION_KINDS,
+        info_layout: str = "nested",
         **overrides: Any,
     ):
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.info_layout = check_info_layout(info_layout)
         self.core = build_core(1, system, config, classifier, action_kinds, **overrides)
         self.config = self.core.config
         self.model = self.core.model
@@ -146,7 +153,7 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
         observation = self.core.reset([self.np_random])
         self._history = []
         self._episode_over = False
-        return _first(observation), self.core.reset_info().system(0)
+        return _first(observation), self.core.reset_info().system(0, self.info_layout)
 
     def step(self, action: SupportsInt) -> tuple[Observation, float, bool, bool, dict[str, Any]]:
         if self._episode_over:
@@ -157,8 +164,9 @@ class BondGraphMaintenanceEnv(gym.Env[Observation, np.int64]):
             raise ValueError(f"action must be an int in [0, {len(self.actions) - 1}] ({self.action_meanings}), got {action!r}")
         result = self.core.step(np.array([int(action)]), [self.np_random])
         observation = _first(result.observation)
-        info = result.info.system(0)
-        self._history.append({"observation": observation, "info": info, "action": int(action)})
+        nested = result.info.system(0)  # rendering reads the nested layout
+        info = nested if self.info_layout == "nested" else result.info.system(0, self.info_layout)
+        self._history.append({"observation": observation, "info": nested, "action": int(action)})
         del self._history[:-120]
         terminated, truncated = bool(result.terminated[0]), bool(result.truncated[0])
         self._episode_over = terminated or truncated

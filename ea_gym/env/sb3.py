@@ -18,6 +18,8 @@ class MaintenanceVecEnv(VecEnv):
     Same episodes as N ``BondGraphMaintenanceEnv`` in a ``DummyVecEnv`` seeded alike (``seed(s)`` gives
     system i the seed s + i), with SB3's conventions: finished episodes restart at once, the last
     observation is in ``info["terminal_observation"]`` and truncation in ``info["TimeLimit.truncated"]``.
+    Wrap it in SB3's ``VecMonitor``, as any ``VecEnv``, for the episodes' returns and lengths in
+    ``info["episode"]`` (SB3's logs and ``evaluate_policy`` read them there).
 
     Args:
         num_envs: N.
@@ -32,7 +34,7 @@ class MaintenanceVecEnv(VecEnv):
     def reset(self) -> VecEnvObs:
         seeds = None if all(s is None for s in self._seeds) else self._seeds
         observation, _ = self.venv.reset(seed=seeds)
-        self.reset_infos = [self.venv.step_info.system(i) for i in range(self.num_envs)]
+        self.reset_infos = [self.venv.step_info.system(i, self.venv.info_layout) for i in range(self.num_envs)]
         self._reset_seeds()
         self._reset_options()
         return observation
@@ -47,10 +49,10 @@ class MaintenanceVecEnv(VecEnv):
         dones = terminated | truncated
         per_env = []
         for i in range(self.num_envs):
-            info = self.venv.step_info.system(i)  # the step's info; an ended episode's last one
+            info = self.venv.step_info.system(i, self.venv.info_layout)  # the step's info; an ended episode's last one
             if dones[i]:
                 info["terminal_observation"] = infos["final_obs"][i]
-                self.reset_infos[i] = self.venv.core.reset_info().system(i)
+                self.reset_infos[i] = self.venv.core.reset_info().system(i, self.venv.info_layout)
             info["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
             per_env.append(info)
         return observation, rewards.astype(np.float32), dones, per_env

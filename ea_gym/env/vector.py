@@ -18,7 +18,9 @@ It behaves as Gymnasium's ``SyncVectorEnv`` of single environments, step for ste
   ``infos["_final_info"]``. ``DISABLED`` never resets by itself: reset the ended systems with
   ``reset(options={"reset_mask": mask})`` before the next step.
 - infos: Gymnasium's layout, each key's values in an array over the N systems beside its ``_key``
-  mask, nested dicts likewise (``infos["cost"]["total"]``, ``infos["cost"]["_total"]``).
+  mask, nested dicts likewise (``infos["cost"]["total"]``, ``infos["cost"]["_total"]``);
+  ``info_layout="flat"`` gives the single environment's flat layout (``ea_gym.env.infos``).
+- ``spec.max_episode_steps``: the horizon (``ea_gym.env.specs``).
 """
 
 from __future__ import annotations
@@ -33,17 +35,19 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from ea_gym.env.core import MaintenanceCore
-from ea_gym.env.infos import StepInfo
+from ea_gym.env.infos import StepInfo, check_info_layout
 from ea_gym.env.maintenance import build_core
 from ea_gym.env.observations import Observation
+from ea_gym.env.specs import HorizonSpec
 
 
-class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarray]):
+class BondGraphMaintenanceVectorEnv(HorizonSpec, VectorEnv[Observation, np.ndarray, np.ndarray]):
     """N maintenance environments in one batch; see ``BondGraphMaintenanceEnv`` for the task.
 
     Args:
         num_envs: N.
         autoreset_mode: how ended episodes restart (see the module docstring).
+        info_layout: ``"nested"`` or ``"flat"`` (numbers only, for TorchRL; ``ea_gym.env.infos``).
         **kwargs: the single environment's keyword arguments (system, config, classifier, and
             ``EnvConfig`` overrides: obs_mode, step_seconds, ...).
 
@@ -58,6 +62,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarra
         num_envs: int = 1,
         render_mode: str | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        info_layout: str = "nested",
         **kwargs: Any,
     ):
         if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0):
@@ -65,6 +70,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarra
         if render_mode is not None:
             raise ValueError(f"the batched environment does not render; render_mode must be None, got {render_mode!r}")
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
+        self.info_layout = check_info_layout(info_layout)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.core: MaintenanceCore = build_core(num_envs, **kwargs)
         self.num_envs = num_envs
@@ -108,7 +114,7 @@ class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarra
         self._ended &= ~systems
         self.step_info = self.core.reset_info()
         observation = fresh if mask is None or self._observation is None else _merge_rows(mask, fresh, self._observation)
-        return self._returned(observation), self.step_info.batched(systems)
+        return self._returned(observation), self.step_info.batched(systems, self.info_layout)
 
     def step(self, actions: np.ndarray) -> tuple[Observation, np.ndarray, np.ndarray, np.ndarray, dict[str, Any]]:
         actions = np.asarray(actions)
@@ -147,11 +153,11 @@ class BondGraphMaintenanceVectorEnv(VectorEnv[Observation, np.ndarray, np.ndarra
             final_obs = np.full(self.num_envs, None, dtype=object)
             for i in np.flatnonzero(ended).tolist():
                 final_obs[i] = {key: value[i] for key, value in observation.items()}
-            infos.update(final_obs=final_obs, _final_obs=ended.copy(), final_info=info.batched(ended), _final_info=ended.copy())
+            infos.update(final_obs=final_obs, _final_obs=ended.copy(), final_info=info.batched(ended, self.info_layout), _final_info=ended.copy())
             observation = _merge_rows(ended, self.core.reset(self._generators, ended), observation)
             info = info.where(ended, self.core.reset_info())
         self._ended = ended
-        infos.update(info.batched(np.ones(self.num_envs, dtype=bool)))
+        infos.update(info.batched(np.ones(self.num_envs, dtype=bool), self.info_layout))
         return self._returned(observation), rewards, terminated, truncated, infos
 
     def _seeds(self, seed: int | Sequence[int | None] | None) -> list[int | None]:
