@@ -1,10 +1,10 @@
 """Every script under experiments/ runs end to end with ``--smoke`` (tiny sizes, its outputs in a temporary
 folder), so nothing the documentation cites can rot; where it is cheap, what the run wrote is checked too.
 
-A script that needs an optional extra skips where the extra is missing: progpy (compare_progpy.py) and
-torchrl (torchrl_check.py), which the ``dev`` extra installs, so CI runs them; Ray RLlib (rllib_ppo.py,
-ray_benchmark.py), which pins an older gymnasium: ``bash scripts/test_ray.sh`` runs those two in its own
-virtual environment; rl-zoo3 (rl_zoo3_check.py), where the ``zoo`` extra is installed.
+A script that needs an optional extra skips where the extra is missing: progpy (compare_progpy.py), torchrl
+(torchrl_check.py) and rl-zoo3 (rl_zoo3_check.py), which the ``dev`` extra installs, so CI runs them; Ray RLlib
+(rllib_ppo.py, ray_benchmark.py), which pins an older gymnasium: ``bash scripts/test_ray.sh`` runs those two in its
+own virtual environment.
 """
 
 from __future__ import annotations
