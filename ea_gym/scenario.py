@@ -39,7 +39,7 @@ from ea_gym.degradation import PiecewiseLinearProfile, ProfileError
 from ea_gym.documents import DocumentError, read_document
 from ea_gym.model_files import is_model_file, load_system
 from ea_gym.models import ParameterError, SystemModel
-from ea_gym.numerics import MAX_LOAD, MAX_SAMPLES
+from ea_gym.numerics import MAX_LOAD, MAX_SAMPLES, MAX_SINE_TERMS, MAX_SINES
 
 if TYPE_CHECKING:
     from ea_gym.loads import Load
@@ -92,7 +92,7 @@ class SinesLoadSpec(_Spec):
 
     kind: Literal["sines"]
     offset: LoadValue = 0.0
-    sines: list[SineSpec]
+    sines: list[SineSpec] = Field(max_length=MAX_SINES)
 
     def make(self) -> Load:
         from ea_gym.loads import Sine, SinesLoad
@@ -323,7 +323,12 @@ def _sampling_problems(spec: ScenarioSpec) -> list[str]:
             f"load.bandwidth: {spec.load.bandwidth!r} Hz must be below the Nyquist frequency "
             f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
         )
-    if isinstance(spec.load, SinesLoadSpec):
+    if isinstance(spec.load, SinesLoadSpec) and samples * len(spec.load.sines) > MAX_SINE_TERMS:
+        problems.append(
+            f"load.sines: {len(spec.load.sines)} sines over {samples:g} samples are {samples * len(spec.load.sines):g} sine terms; "
+            f"at most {MAX_SINE_TERMS} per run (fewer sines or a shorter run)"
+        )
+    elif isinstance(spec.load, SinesLoadSpec):
         for i, sine in enumerate(spec.load.sines):
             if not sine.frequency < spec.sample_rate / 2:
                 problems.append(
