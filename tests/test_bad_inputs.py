@@ -193,11 +193,14 @@ def _resume_in_place_with_a_link(link: str) -> Setup:
     return setup
 
 
-def _agent_json_linked_to_dev_zero(tmp: Path) -> list[str]:
-    agent = _agent(tmp)
-    (agent / "agent.json").unlink()
-    (agent / "agent.json").symlink_to("/dev/zero")
-    return ["benchmark", "--ppo", str(agent), "--episodes", "1", "--out", str(tmp / "out")]
+def _linked_to_dev_zero(name: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        agent = _agent(tmp)
+        (agent / name).unlink()
+        (agent / name).symlink_to("/dev/zero")
+        return ["benchmark", "--ppo", str(agent), "--episodes", "1", "--out", str(tmp / "out")]
+
+    return setup
 
 
 def _model_yaml(tmp: Path, text: str) -> list[str]:
@@ -313,7 +316,7 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
      "agent/checkpoints is a symbolic link; expected"),
     ("train --resume R --out R, a checkpoint a link", _resume_in_place_with_a_link("checkpoints/ppo_1000_steps"),
      "agent/checkpoints/ppo_1000_steps is a symbolic link; expected"),
-    ("benchmark --ppo an agent.json linked to /dev/zero", _agent_json_linked_to_dev_zero, "agent/agent.json is a symbolic link"),
+    ("benchmark --ppo an agent.json linked to /dev/zero", _linked_to_dev_zero("agent.json"), "agent/agent.json is a symbolic link"),
     # bounds on what a file asks for, checked before anything is allocated (these also run under a memory cap: BOUNDED)
     ("a scenario of 24,000 sines", _scenario_case(_sines(24_000)), "load.sines: List should have at most 1000 items"),
     ("1000 sines over 1e6 samples", _scenario_case(_sines(1000, duration=10_000.0)),
@@ -348,6 +351,8 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
     ("t around 1e12 s", _late_times,
      "column 't': times up to 1e+12 s are too large for their resolution: a float64 there resolves 0.000122 s"),
     ("a policy tensor of another shape", _truncated_weights, "has shape ["),
+    ("benchmark --ppo a policy.safetensors linked to /dev/zero", _linked_to_dev_zero("policy.safetensors"),
+     "agent/policy.safetensors is a symbolic link"),
 ]
 
 #: the cases of bounds, run again in a process whose memory is capped (``test_bounds_hold_under_a_memory_cap``)
