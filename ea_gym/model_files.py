@@ -368,7 +368,8 @@ def _bonds(raw: Any, elements: list[str], problems: _Problems) -> list[tuple[str
     for i, bond in enumerate(raw):
         where = f"bonds[{i}]"
         if not (isinstance(bond, list) and len(bond) == 2 and all(isinstance(end, str) for end in bond)):
-            problems.add(where, f"expected [tail, head], two element names, got {_cut(repr(bond), 60) if isinstance(bond, list) else _describe(bond)}")
+            got = _cut(repr(bond), 60) if isinstance(bond, list) else _describe(bond)
+            problems.add(where, f"expected [tail, head], two element names, got {got}")
             continue
         tail, head = bond
         unknown = [end for end in bond if end not in elements]
