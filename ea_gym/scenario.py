@@ -51,6 +51,10 @@ Integer = Annotated[int, Strict()]
 LoadValue = Annotated[float, Strict(), Field(ge=-MAX_LOAD, le=MAX_LOAD)]
 
 
+#: problems a refusal's message lists before it counts the rest (each cut at 300 characters)
+LISTED_PROBLEMS = 8
+
+
 class ScenarioError(ValueError):
     """An invalid scenario; the message lists one ``<field.path>: <expected>`` line per problem."""
 
@@ -58,7 +62,9 @@ class ScenarioError(ValueError):
 
     @classmethod
     def from_problems(cls, source: str, problems: Sequence[str]) -> ScenarioError:
-        error = cls("\n  ".join([f"invalid scenario ({source}):", *problems]))
+        shown = [problem if len(problem) <= 300 else problem[:297] + "..." for problem in problems[:LISTED_PROBLEMS]]
+        more = [f"... ({len(problems)} problems in all)"] if len(problems) > LISTED_PROBLEMS else []
+        error = cls("\n  ".join([f"invalid scenario ({source}):", *shown, *more]))
         error.problems = tuple(problems)
         return error
 

@@ -319,6 +319,8 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
     ("benchmark --ppo an agent.json linked to /dev/zero", _linked_to_dev_zero("agent.json"), "agent/agent.json is a symbolic link"),
     # bounds on what a file asks for, checked before anything is allocated (these also run under a memory cap: BOUNDED)
     ("a scenario of 24,000 sines", _scenario_case(_sines(24_000)), "load.sines: List should have at most 1000 items"),
+    ("999 sines above Nyquist", _scenario_case(scenario(load={"kind": "sines", "sines": [{"amplitude": 1.0, "frequency": 1e3}] * 999})),
+     "load.sines[7].frequency: 1000.0 Hz must be below the Nyquist frequency sample_rate / 2 = 50.0 Hz; ... (999 problems in all)"),
     ("1000 sines over 1e6 samples", _scenario_case(_sines(1000, duration=10_000.0)),
      "load.sines: 1000 sines over 1e+06 samples are 1e+09 sine terms; at most 100000000 per run"),
     ("a model file of 15,000 unbonded junctions", lambda tmp: _model_yaml(tmp, _many("0", 15_000)),
