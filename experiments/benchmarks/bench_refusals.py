@@ -2,7 +2,7 @@
 
 Every case is a new ``ea-gym`` process (the interpreter's start counted, as a user waits for it) on a bad input the
 script writes into a temporary directory: a scenario, a model file, a measurement CSV, an agent directory whose
-agent.json is wrong. Each prints its median wall time over ``--repeats`` runs, its exit code (2 for every refusal) and
+agent.json is wrong. Each prints its median wall time over ``--repeats`` runs (and its CPU time), its exit code (2 for every refusal) and
 the refusal's first characters. Refusals should come within 1 s: validation runs before torch, numba and scipy are
 imported. The machine's load average is printed with the numbers: on a shared machine it moves them.
 
@@ -14,7 +14,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -75,28 +77,40 @@ CASES: dict[str, Callable[[Path], list[str]]] = {
 }
 
 
-def measure(setup: Callable[[Path], list[str]]) -> tuple[float, int, str]:
-    """One fresh ``ea-gym`` process on the case's files: (wall time in s, exit code, first line of stderr)."""
+def _children_cpu() -> float:
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def measure(setup: Callable[[Path], list[str]], timeout: float) -> tuple[float, float, int | None, str]:
+    """One fresh ``ea-gym`` process on the case's files: (wall time in s, its CPU time in s, exit code, first line of
+    stderr); a process still running after ``timeout`` s (an input accepted, or refused only after it allocated) is
+    stopped: exit code None. The CPU time moves less with the machine's load than the wall time."""
     with tempfile.TemporaryDirectory() as tmp:
         argv = setup(Path(tmp))
+        cpu = _children_cpu()
         start = time.perf_counter()
-        result = subprocess.run([sys.executable, "-m", "ea_gym.cli", *argv], capture_output=True, text=True,
-                                env={**os.environ, "PYTHONPATH": str(ROOT)})
+        try:
+            result = subprocess.run([sys.executable, "-m", "ea_gym.cli", *argv], capture_output=True, text=True, timeout=timeout,
+                                    env={**os.environ, "PYTHONPATH": str(ROOT)})
+        except subprocess.TimeoutExpired:
+            return time.perf_counter() - start, math.nan, None, f"still running after {timeout:g} s: stopped"
         wall = time.perf_counter() - start
-    return wall, result.returncode, (result.stderr.splitlines() or [""])[0]
+    return wall, _children_cpu() - cpu, result.returncode, (result.stderr.splitlines() or [""])[0]
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeats", type=int, default=3, help="runs per case (the median is printed)")
+    parser.add_argument("--timeout", type=float, default=60.0, help="seconds after which a case's process is stopped")
     args = parse_with_smoke(parser, argv, {"repeats": 1})
     print(f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     slowest = 0.0
     for name, setup in CASES.items():
-        runs = [measure(setup) for _ in range(args.repeats)]
-        wall = statistics.median(run[0] for run in runs)
+        runs = [measure(setup, args.timeout) for _ in range(args.repeats)]
+        wall, cpu = statistics.median(run[0] for run in runs), statistics.median(run[1] for run in runs)
         slowest = max(slowest, wall)
-        print(f"{name}: {wall:.2f} s, exit {runs[0][1]}: {runs[0][2][:110]}")
+        print(f"{name}: {wall:.2f} s ({cpu:.2f} s CPU), exit {runs[0][2]}: {runs[0][3][:110]}")
     print(f"slowest refusal: {slowest:.2f} s")
     return 0
 
