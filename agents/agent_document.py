@@ -35,6 +35,10 @@ MAX_PARAMETERS = 10_000_000
 MAX_BUFFER_BYTES = 1 << 30
 
 
+#: stable-baselines3's defaults of the buffers' lengths: PPO's and A2C's n_steps, DQN's buffer_size
+_DEFAULT_STEPS = {"ppo": 2048, "a2c": 5, "dqn": 1_000_000}
+
+
 def field_of(data: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
     """``data[key]``, of type ``kind`` (booleans are not numbers); ValueError naming the field otherwise."""
     if not isinstance(data, dict) or key not in data:
@@ -121,7 +125,7 @@ def check_sizes(data: dict[str, Any], where: str) -> None:
                          f"{MAX_PARAMETERS:.3g}")
     hyperparameters = data["hyperparameters"]
     steps_name = "buffer_size" if data["algorithm"] == "dqn" else "n_steps"
-    steps = hyperparameters.get(steps_name, 1_000_000 if steps_name == "buffer_size" else 2048)
+    steps = hyperparameters.get(steps_name, _DEFAULT_STEPS[data["algorithm"]])
     buffer = steps * (2 * values + 8) * 4  # float32 observations (twice in a replay buffer) and the per-step scalars
     if buffer > MAX_BUFFER_BYTES:
         raise ValueError(f"{where}: hyperparameters.{steps_name} = {steps} makes a training buffer of {buffer / 2**30:.3g} GiB per "
