@@ -1,7 +1,8 @@
-"""Generated inputs (hypothesis, bounded and derandomized): scenario, model-file and measurement parsing and the
-environments' settings raise nothing but the project's own validation errors.
+"""Generated inputs (hypothesis, bounded and derandomized): scenario, model-file (data and typed YAML), measurement and
+agent.json parsing and the environments' settings raise nothing but the project's own validation errors, each one line.
 
-A few hundred examples per target keep the file to seconds; ``derandomize`` makes every run draw the same examples.
+A few hundred examples per target (400 each, 2,800 in all) keep the file to seconds; ``derandomize`` makes every run
+draw the same examples.
 """
 
 from __future__ import annotations
