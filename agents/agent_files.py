@@ -46,18 +46,15 @@ from stable_baselines3.common.vec_env import VecEnv, VecNormalize
 from stable_baselines3.dqn.policies import DQNPolicy
 from stable_baselines3.dqn.policies import MultiInputPolicy as DQNMultiInputPolicy
 
+from agents.agent_document import FORMAT, VERSION, check_net_arch, field_of, read_agent_document
 from agents.conventions import AGENT_FILE, OPTIMIZER_FILE, POLICY_FILE, SB3_MODEL_FILE, SB3_NORMALIZATION_FILE
-from agents.hyperparameters import check_hyperparameters
-from ea_gym.documents import DocumentError, read_document
-from ea_gym.files import refuse_links, write_atomic, write_json
+from ea_gym.files import write_atomic, write_json
 
 __all__ = [
     "FORMAT", "VERSION", "ALGORITHMS", "RunningStats", "Normalization", "TrainedEnvironment", "AgentDescription",
     "save_agent", "read_agent", "build_policy", "load_weights", "load_optimizer", "load_sb3",
 ]
 
-FORMAT = "ea-gym-agent"
-VERSION = 1
 #: the algorithms an agent is trained with, by the name ``agent.json`` and ``ea-gym train --algo`` give them
 ALGORITHMS: dict[str, type[BaseAlgorithm]] = {"ppo": PPO, "a2c": A2C, "dqn": DQN}
 
@@ -97,12 +94,12 @@ class RunningStats:
 
     @classmethod
     def from_json(cls, data: Any, where: str) -> RunningStats:
-        shape = _shape(_field(data, "shape", list, where), where)
-        mean = _array(_field(data, "mean", list, where), shape, np.float64, f"{where}.mean")
-        var = _array(_field(data, "var", list, where), shape, np.float64, f"{where}.var")
+        shape = _shape(field_of(data, "shape", list, where), where)
+        mean = _array(field_of(data, "mean", list, where), shape, np.float64, f"{where}.mean")
+        var = _array(field_of(data, "var", list, where), shape, np.float64, f"{where}.var")
         if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(var)) and np.all(var >= 0)):
             raise ValueError(f"{where}: means must be finite and variances finite and >= 0")
-        count = _number(_field(data, "count", (int, float), where), f"{where}.count")
+        count = _number(field_of(data, "count", (int, float), where), f"{where}.count")
         if count < 0:
             raise ValueError(f"{where}.count must be >= 0 (samples seen), got {count}")
         return cls(mean, var, count)
@@ -162,17 +159,17 @@ class Normalization:
 
     @classmethod
     def from_json(cls, data: Any, where: str) -> Normalization:
-        keys = _field(data, "norm_obs_keys", list, where)
-        statistics = _field(data, "obs_rms", dict, where)
+        keys = field_of(data, "norm_obs_keys", list, where)
+        statistics = field_of(data, "obs_rms", dict, where)
         if sorted(map(str, keys)) != sorted(statistics):
             raise ValueError(f"{where}: obs_rms must hold one entry per key of norm_obs_keys {keys}, got {sorted(statistics)}")
         return cls({str(key): RunningStats.from_json(statistics[key], f"{where}.obs_rms.{key}") for key in keys},
-                   _positive(_field(data, "clip_obs", (int, float), where), f"{where}.clip_obs"),
-                   _positive(_field(data, "epsilon", (int, float), where), f"{where}.epsilon"),
-                   _field(data, "norm_reward", bool, where),
-                   _positive(_field(data, "clip_reward", (int, float), where), f"{where}.clip_reward"),
-                   _fraction(_field(data, "gamma", (int, float), where), f"{where}.gamma"),
-                   RunningStats.from_json(_field(data, "ret_rms", dict, where), f"{where}.ret_rms"))
+                   _positive(field_of(data, "clip_obs", (int, float), where), f"{where}.clip_obs"),
+                   _positive(field_of(data, "epsilon", (int, float), where), f"{where}.epsilon"),
+                   field_of(data, "norm_reward", bool, where),
+                   _positive(field_of(data, "clip_reward", (int, float), where), f"{where}.clip_reward"),
+                   _fraction(field_of(data, "gamma", (int, float), where), f"{where}.gamma"),
+                   RunningStats.from_json(field_of(data, "ret_rms", dict, where), f"{where}.ret_rms"))
 
 
 @dataclass(frozen=True)
@@ -243,53 +240,36 @@ def save_agent(
 
 def read_agent(directory: Path) -> AgentDescription:
     """``directory/agent.json`` read and checked (no weights loaded); ValueError naming the field otherwise."""
-    path = Path(directory) / AGENT_FILE
-    refuse_links(directory, "as an agent")
-    try:
-        data = read_document(path)
-    except DocumentError as error:
-        raise ValueError(f"{path}: cannot read the agent's description ({error})") from None
-    where = str(path)
-    if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ValueError(f"{where}: not an ea-gym agent (expected \"format\": {FORMAT!r})")
-    version = _field(data, "version", int, where)
-    if version > VERSION:
-        raise ValueError(f"{where}: format version {version} is newer than this ea-gym reads ({VERSION})")
-    algorithm = _field(data, "algorithm", str, where)
-    if algorithm not in ALGORITHMS:
-        raise ValueError(f"{where}: algorithm must be one of {sorted(ALGORITHMS)}, got {algorithm!r}")
-    policy = _field(data, "policy", dict, where)
-    policy_class = _class(POLICY_CLASSES, _field(policy, "class", str, f"{where}: policy"), f"{where}: policy.class")
-    observation_space = build_space(_field(data, "observation_space", dict, where), f"{where}: observation_space")
-    action_space = build_space(_field(data, "action_space", dict, where), f"{where}: action_space")
+    data = read_agent_document(directory)  # the checks that need no torch, sizes included
+    where = str(Path(directory) / AGENT_FILE)
+    algorithm, hyperparameters, num_timesteps = data["algorithm"], data["hyperparameters"], data["num_timesteps"]
+    policy = field_of(data, "policy", dict, where)
+    policy_class = _class(POLICY_CLASSES, field_of(policy, "class", str, f"{where}: policy"), f"{where}: policy.class")
+    observation_space = build_space(field_of(data, "observation_space", dict, where), f"{where}: observation_space")
+    action_space = build_space(field_of(data, "action_space", dict, where), f"{where}: action_space")
     if not isinstance(observation_space, spaces.Dict) or not isinstance(action_space, spaces.Discrete):
         raise ValueError(f"{where}: agents act on a Dict observation space with a Discrete action space")
-    environment = _field(data, "environment", dict, where)
-    optimizer = _field(data, "optimizer", dict, where)
+    environment = field_of(data, "environment", dict, where)
+    optimizer = field_of(data, "optimizer", dict, where)
     groups = optimizer.get("param_groups")
     if groups is not None and not (isinstance(groups, list) and all(isinstance(g, dict) for g in groups)):
         raise ValueError(f"{where}: optimizer.param_groups must be a list of objects")
-    hyperparameters = _field(data, "hyperparameters", dict, where)
-    check_hyperparameters(algorithm, hyperparameters, f"{where}: hyperparameters")
-    num_timesteps = _field(data, "num_timesteps", int, where)
-    if num_timesteps < 0:
-        raise ValueError(f"{where}: num_timesteps must be an integer >= 0 (environment steps trained), got {num_timesteps}")
     return AgentDescription(
         algorithm=algorithm,
         hyperparameters=hyperparameters,
         num_timesteps=num_timesteps,
         policy_class=policy_class,
-        policy_kwargs=_resolve_kwargs(_field(policy, "kwargs", dict, f"{where}: policy"), f"{where}: policy.kwargs"),
+        policy_kwargs=_resolve_kwargs(field_of(policy, "kwargs", dict, f"{where}: policy"), f"{where}: policy.kwargs"),
         observation_space=observation_space,
         action_space=action_space,
         environment=TrainedEnvironment(
-            env_id=_field(environment, "id", str, f"{where}: environment"),
-            obs_mode=_field(environment, "obs_mode", str, f"{where}: environment"),
-            env_kwargs=_field(environment, "env_kwargs", dict, f"{where}: environment"),
-            activity=_field(environment, "activity", bool, f"{where}: environment"),
-            suspect_wear=_field({"suspect_wear": False, **environment}, "suspect_wear", bool, f"{where}: environment"),
+            env_id=field_of(environment, "id", str, f"{where}: environment"),
+            obs_mode=field_of(environment, "obs_mode", str, f"{where}: environment"),
+            env_kwargs=field_of(environment, "env_kwargs", dict, f"{where}: environment"),
+            activity=field_of(environment, "activity", bool, f"{where}: environment"),
+            suspect_wear=field_of({"suspect_wear": False, **environment}, "suspect_wear", bool, f"{where}: environment"),
         ),
-        normalization=Normalization.from_json(_field(data, "normalization", dict, where), f"{where}: normalization"),
+        normalization=Normalization.from_json(field_of(data, "normalization", dict, where), f"{where}: normalization"),
         optimizer_groups=groups,
     )
 
@@ -309,9 +289,24 @@ def load_weights(policy: th.nn.Module, directory: Path) -> None:
     """Load ``directory/policy.safetensors`` into ``policy`` (every tensor, shapes checked)."""
     path = _regular(Path(directory) / POLICY_FILE)
     try:
-        policy.load_state_dict(load_file(path, device="cpu"), strict=True)
+        tensors = load_file(path, device="cpu")
     except (OSError, SafetensorError, RuntimeError) as error:
         raise ValueError(f"{path}: cannot load the policy's weights ({_first_line(error)})") from None
+    mismatch = _weights_mismatch(policy.state_dict(), tensors)
+    if mismatch is not None:
+        raise ValueError(f"{path}: cannot load the policy's weights: {mismatch}")
+    policy.load_state_dict(tensors, strict=True)
+
+
+def _weights_mismatch(expected: Mapping[str, th.Tensor], found: Mapping[str, th.Tensor]) -> str | None:
+    """The first tensor missing, extra or of another shape than the policy agent.json describes needs; None if all fit."""
+    for name, tensor in expected.items():
+        if name not in found:
+            return f"tensor {name!r} (shape {list(tensor.shape)}) is missing"
+        if found[name].shape != tensor.shape:
+            return f"tensor {name!r} has shape {list(found[name].shape)}; the policy agent.json describes needs {list(tensor.shape)}"
+    extra = [name for name in found if name not in expected]
+    return f"tensor {extra[0]!r} is not one of the policy's ({len(expected)} tensors)" if extra else None
 
 
 def load_optimizer(optimizer: th.optim.Optimizer, description: AgentDescription, directory: Path) -> None:
@@ -364,22 +359,22 @@ def describe_space(space: spaces.Space) -> dict[str, Any]:
 
 def build_space(data: Any, where: str) -> spaces.Space:
     """The space ``describe_space`` described (a Dict keeps its keys' order)."""
-    kind = _field(data, "type", str, where)
+    kind = field_of(data, "type", str, where)
     if kind == "Dict":
-        entries = _field(data, "spaces", list, where)
+        entries = field_of(data, "spaces", list, where)
         if not all(isinstance(e, list) and len(e) == 2 and isinstance(e[0], str) for e in entries):
             raise ValueError(f"{where}.spaces must be a list of [name, space] pairs")
         return spaces.Dict([(key, build_space(sub, f"{where}.{key}")) for key, sub in entries])
     if kind == "Box":
-        shape = _shape(_field(data, "shape", list, where), where)
-        dtype = _field(data, "dtype", str, where)
+        shape = _shape(field_of(data, "shape", list, where), where)
+        dtype = field_of(data, "dtype", str, where)
         if dtype not in ("float32", "float64"):
             raise ValueError(f"{where}.dtype must be 'float32' or 'float64', got {dtype!r}")
-        low = _array(_field(data, "low", list, where), shape, np.dtype(dtype), f"{where}.low")
-        high = _array(_field(data, "high", list, where), shape, np.dtype(dtype), f"{where}.high")
+        low = _array(field_of(data, "low", list, where), shape, np.dtype(dtype), f"{where}.low")
+        high = _array(field_of(data, "high", list, where), shape, np.dtype(dtype), f"{where}.high")
         return spaces.Box(low, high, shape, np.dtype(dtype).type)
     if kind == "Discrete":
-        n, start = _field(data, "n", int, where), _field(data, "start", int, where)
+        n, start = field_of(data, "n", int, where), field_of(data, "start", int, where)
         if n < 1:
             raise ValueError(f"{where}.n must be >= 1, got {n}")
         return spaces.Discrete(n, start=start)
@@ -410,21 +405,13 @@ def _architecture(policy: BasePolicy) -> dict[str, Any]:
 
 def _resolve_kwargs(kwargs: dict[str, Any], where: str) -> dict[str, Any]:
     if "net_arch" in kwargs:
-        _check_net_arch(kwargs["net_arch"], f"{where}.net_arch")
+        check_net_arch(kwargs["net_arch"], f"{where}.net_arch")
     resolved = dict(kwargs)
     for name, table in CLASS_ARGUMENTS.items():
         if name in resolved:
             resolved[name] = _class(table, resolved[name], f"{where}.{name}")
     return resolved
 
-
-def _check_net_arch(net_arch: Any, where: str) -> None:
-    """stable-baselines3's ``net_arch``: the hidden layers' widths, shared (a list) or the actor's and the critic's
-    (``{"pi": [...], "vf": [...]}``); every width an integer >= 1."""
-    layers = net_arch.values() if isinstance(net_arch, dict) and set(net_arch) <= {"pi", "vf"} else [net_arch]
-    for widths in layers:
-        if not (isinstance(widths, list) and all(isinstance(w, int) and not isinstance(w, bool) and w >= 1 for w in widths)):
-            raise ValueError(f"{where} must be a list of layer widths (integers >= 1) or {{\"pi\": [...], \"vf\": [...]}}, got {net_arch!r}")
 
 
 def _write_tensors(path: Path, tensors: Mapping[str, th.Tensor]) -> None:
@@ -454,16 +441,6 @@ def _class(table: Mapping[str, type], name: Any, where: str) -> type:
         raise ValueError(f"{where} must be one of {sorted(table)}, got {name!r}")
     return table[name]
 
-
-def _field(data: Any, key: str, kind: type | tuple[type, ...], where: str) -> Any:
-    """``data[key]``, of type ``kind`` (booleans are not numbers)."""
-    if not isinstance(data, dict) or key not in data:
-        raise ValueError(f"{where}: field {key!r} is missing")
-    value = data[key]
-    kinds = kind if isinstance(kind, tuple) else (kind,)
-    if not isinstance(value, kinds) or (isinstance(value, bool) and bool not in kinds):
-        raise ValueError(f"{where}: field {key!r} must be {' or '.join(k.__name__ for k in kinds)}, got {value!r}")
-    return value
 
 
 def _shape(values: list[Any], where: str) -> tuple[int, ...]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import os
 from pathlib import Path
 from typing import Any
 
@@ -51,9 +52,19 @@ def _continues_out(args: argparse.Namespace) -> bool:
                      "directory to continue it")
 
 
+def _check_agent(path: Path | None) -> None:
+    """An agent directory's agent.json checked before torch is imported: a bad one is refused at once (a directory without
+    one, stable-baselines3's pickles, is refused by ``refuse_pickle``)."""
+    if path is not None and path.is_dir() and os.path.lexists(path / AGENT_FILE):
+        from agents.agent_document import read_agent_document
+
+        read_agent_document(path)
+
+
 def _train(args: argparse.Namespace) -> int:
     check_output_directory(args.out)
     continues = _continues_out(args)
+    _check_agent(None if args.resume is None else Path(args.resume))
     env_kwargs = _env_kwargs(args)
     if args.backend == "rllib":
         return _train_rllib(args, env_kwargs)
@@ -100,10 +111,11 @@ def _train_rllib(args: argparse.Namespace, env_kwargs: dict[str, Any]) -> int:
 
 def _benchmark(args: argparse.Namespace) -> int:
     check_output_directory(args.out)
+    ppo = None if args.no_ppo else (Path(args.ppo) if args.ppo is not None else default_agent())
+    _check_agent(ppo)
     env_kwargs = _env_kwargs(args)
     from agents.benchmark.run import run_benchmark
 
-    ppo = None if args.no_ppo else (Path(args.ppo) if args.ppo is not None else default_agent())
     result = run_benchmark(
         args.episodes, args.seed, Path(args.out), ppo, tune_episodes=args.tune_episodes, progress=not args.no_progress, tune=args.tune,
         tuned_file=None if args.tuned is None else Path(args.tuned), write_tuned_to=None if args.write_tuned is None else Path(args.write_tuned),

@@ -15,6 +15,7 @@ import dataclasses
 import enum
 import hashlib
 import json
+import math
 import os
 import warnings
 import zipfile
@@ -146,6 +147,7 @@ def read_arrays_entry(kind: str, key: str) -> dict[str, np.ndarray] | None:
     if not path.is_file():
         return None
     try:
+        _check_members(path)
         with np.load(path, allow_pickle=False) as archive:
             arrays = {name: archive[name] for name in archive.files}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
@@ -155,6 +157,32 @@ def read_arrays_entry(kind: str, key: str) -> dict[str, np.ndarray] | None:
         warn_rebuilt(path, "its recorded key is not its name's")
         return None
     return arrays
+
+
+#: most bytes an arrays entry's members may declare, together (the thresholds and networks cached are kilobytes)
+MAX_ENTRY_BYTES = 1 << 28
+
+
+def _check_members(path: Path) -> None:
+    """Every member's shape and dtype read from its header, before any array is allocated: each member's data as large
+    as its header declares (a header declaring shape (1e11,) would allocate 800 GB) and all of them within MAX_ENTRY_BYTES.
+
+    Raises:
+        ValueError: naming the member.
+    """
+    total = 0
+    with zipfile.ZipFile(path) as archive:
+        for info in archive.infolist():
+            with archive.open(info) as member:
+                version = np.lib.format.read_magic(member)
+                read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+                shape, _, dtype = read_header(member, max_header_size=10_000)
+                declared = math.prod(shape) * dtype.itemsize
+                if dtype.hasobject or declared != info.file_size - member.tell():
+                    raise ValueError(f"member {info.filename} declares {shape} {dtype}, {declared} bytes; it holds {info.file_size - member.tell()}")
+            total += declared
+            if total > MAX_ENTRY_BYTES:
+                raise ValueError(f"its members declare more than {MAX_ENTRY_BYTES} bytes")
 
 
 def write_arrays_entry(kind: str, key: str, arrays: Mapping[str, np.ndarray]) -> Path:

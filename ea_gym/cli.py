@@ -141,12 +141,13 @@ def _models(args: argparse.Namespace) -> int:
 
 def _model(args: argparse.Namespace) -> int:
     from ea_gym.bondgraph import Kind
-    from ea_gym.model_files import load_model_file
+    from ea_gym.model_files import load_model_file, printable
 
     model = load_model_file(args.file)
     space = model.state_space
     elements = model.graph.elements
-    print(f"{model.name}: {model.description}" if model.description else model.name)
+    # a description is free text: a terminal's escape sequences in it are shown, not obeyed
+    print(f"{model.name}: {printable(model.description)}" if model.description else model.name)
     print("causality (the causal stroke sits at the end of the bond whose element receives the effort):")
     for bond, setter in zip(model.graph.bonds, space.causality.effort_setter):
         print(f"  {bond.tail} -> {bond.head}: stroke at {bond.other(setter)} ({setter} sets the effort)")
@@ -183,12 +184,8 @@ def _parameter_lines(model: SystemModel) -> list[str]:
 
 def _phm_measurements(args: argparse.Namespace) -> int:
     """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth."""
-    import numpy as np
-
     from ea_gym.measurements import noise_estimate, read_measurements, resampled
     from ea_gym.model_files import load_system
-    from ea_gym.phm import build_chain, chain_config, chain_sample_rate, check_duration, classifier_for, run_measurements
-    from ea_gym.reporting import write_phm_outputs
 
     if args.system is None:
         raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
@@ -198,6 +195,11 @@ def _phm_measurements(args: argparse.Namespace) -> int:
         args.measurements, model, columns=_column_mapping(args.columns), ignore=[name for names in args.ignore_columns for name in names],
         sample_rate=args.sample_rate,
     )
+    import numpy as np  # the chain's heavy imports (numba, scipy, torch) once the files are valid: a refusal comes at once
+
+    from ea_gym.phm import build_chain, chain_config, chain_sample_rate, check_duration, classifier_for, run_measurements
+    from ea_gym.reporting import write_phm_outputs
+
     rate = chain_sample_rate(recorded.sample_rate)
     measurements = recorded if rate == recorded.sample_rate else resampled(recorded, rate)
     check_duration(measurements, chain_config(rate, 0.0))  # before the calibration and the network

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import stat
 from pathlib import Path
 from typing import Any
@@ -84,6 +85,12 @@ def _construct_unique_mapping(loader: _UniqueKeyLoader, node: yaml.MappingNode, 
 
 
 _UniqueKeyLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_unique_mapping)
+# YAML 1.1 reads a float only with a dot: 5e-1 and 1E3 would be strings where every reader means numbers (as JSON does)
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9][0-9_]*[eE][-+]?[0-9]+$"), list("-+0123456789")
+)
+#: Python's limit on the digits of an integer read from text (sys.get_int_max_str_digits)
+MAX_DIGITS = 4300
 
 
 def _unique_pairs(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
@@ -109,6 +116,17 @@ def _check_shape(data: Any) -> None:
                 raise DocumentError(f"the document nests deeper than {MAX_DEPTH} levels")
             children = value.values() if isinstance(value, dict) else value
             stack.extend((child, depth + 1) for child in children)
+
+
+def _long_number(text: str) -> str:
+    """Where ``text`` writes an integer of more than MAX_DIGITS digits: its line and its field."""
+    match = re.search(rf"([\"']?([A-Za-z_][\w.-]*)[\"']?\s*:\s*)?[-+]?[0-9]{{{MAX_DIGITS + 1},}}", text)
+    if match is None:
+        return f"a number has more than {MAX_DIGITS} digits; expected a number of at most {MAX_DIGITS} digits"
+    line = text.count("\n", 0, match.start()) + 1
+    field = f", field {match[2]!r}" if match[2] else ""
+    digits = len(match[0]) - len(match[1] or "")
+    return f"line {line}{field}: a number of {digits} digits; expected a number of at most {MAX_DIGITS} digits"
 
 
 def read_document(path: str | os.PathLike[str]) -> Any:
@@ -139,5 +157,9 @@ def read_document(path: str | os.PathLike[str]) -> Any:
     except (json.JSONDecodeError, yaml.YAMLError) as exc:
         reason = " ".join(str(exc).split())
         raise DocumentError(f"the file is not valid {syntax}: {reason}") from None
+    except DocumentError:
+        raise
+    except ValueError:  # an integer past Python's limit on digits read from text
+        raise DocumentError(_long_number(text)) from None
     _check_shape(data)
     return data

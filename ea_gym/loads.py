@@ -37,11 +37,21 @@ def _multisine(
     t: np.ndarray, amplitudes: np.ndarray, frequencies: np.ndarray, phases: np.ndarray, derivative: bool
 ) -> np.ndarray:
     """sum_i a_i sin(2 pi f_i t + phi_i), or its time derivative, elementwise over t."""
+    t = np.asarray(t, dtype=float)
+    rows = max(1, _TERMS_AT_ONCE // max(len(frequencies), 1))
+    if t.size > rows:  # times x sines angles in slices: a long run of many sines would otherwise hold them all at once
+        flat = t.reshape(-1)
+        parts = [_multisine(flat[k:k + rows], amplitudes, frequencies, phases, derivative) for k in range(0, flat.size, rows)]
+        return np.concatenate(parts).reshape(t.shape)
     omega = 2.0 * np.pi * frequencies
-    angle = np.asarray(t, dtype=float)[..., None] * omega + phases
+    angle = t[..., None] * omega + phases
     if derivative:
         return np.cos(angle) @ (amplitudes * omega)
     return np.sin(angle) @ amplitudes
+
+
+#: the most time x sine angles _multisine holds at once (8 MB of them)
+_TERMS_AT_ONCE = 1 << 20
 
 
 @dataclass(frozen=True)

@@ -53,6 +53,9 @@ MAX_BYTES = 256 * 2**20
 MAX_ROWS = 2_000_000
 #: a sample's time may stray this fraction of the sampling period from the uniform grid
 TIME_TOLERANCE = 0.01
+#: most columns a measurement file's header may have, counted before any row is read (a model needs t, the load and
+#: one column per state: at most ea_gym.model_files.MAX_STATES + 2)
+MAX_COLUMNS = 1024
 #: how many of a record's samples either side :func:`resampled`'s filter reaches (scipy's ``resample_poly``: 10 x the
 #: larger of the up and down factors at the upsampled rate)
 RESAMPLING_REACH = 10
@@ -152,6 +155,8 @@ def read_measurements(
     text = raw.decode("utf-8", errors="replace")
     head = re.split(r"\r\n|\r|\n", text, maxsplit=1)[0]
     delimiter = ";" if head.count(";") > head.count(",") else ","
+    if head.count(delimiter) >= MAX_COLUMNS:  # before any row is split: each column costs every row a cell
+        raise MeasurementError(f"{path}: the header has {head.count(delimiter) + 1} columns; a record has at most {MAX_COLUMNS}")
     rows = _rows(path, csv.reader(io.StringIO(text, newline=""), delimiter=delimiter))
     header = next(rows, None)
     if header is None:
@@ -336,6 +341,14 @@ def _check_increasing(path: Path, t: np.ndarray) -> None:
     if np.any(step <= 0):
         k = int(np.argmax(step <= 0)) + 1
         raise MeasurementError(f"{path}: line {k + 2}: t = {t[k]:.9g} s does not increase (the line before has {t[k - 1]:.9g} s)")
+    largest = float(np.max(np.abs(t)))
+    period = float(np.median(step))
+    if np.spacing(largest) > TIME_TOLERANCE * period / 2:  # a float that large cannot hold the period's fractions
+        raise MeasurementError(
+            f"{path}: column 't': times up to {largest:.6g} s are too large for their resolution: a float64 there resolves "
+            f"{np.spacing(largest):.3g} s, more than {TIME_TOLERANCE / 2:g} of the {period:.3g} s sampling period; "
+            "write the times from the record's start (t - t0)"
+        )
 
 
 def _timestamp_resolution(t: np.ndarray) -> float:

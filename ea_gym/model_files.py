@@ -46,13 +46,25 @@ from ea_gym.bondgraph.graph import BondGraph, BondGraphError
 from ea_gym.documents import DocumentError, read_document
 from ea_gym.models import MODELS, ParameterError, SystemModel, get_model
 
-__all__ = ["MODEL_FILE_SUFFIXES", "ModelFileError", "is_model_file", "load_model_file", "load_system", "model_from_data"]
+__all__ = [
+    "MAX_BONDS", "MAX_ELEMENTS", "MAX_STATES", "MODEL_FILE_SUFFIXES", "ModelFileError", "is_model_file", "load_model_file", "load_system",
+    "model_from_data", "printable",
+]
 
 MODEL_FILE_SUFFIXES = (".yaml", ".yml", ".json")
 NAME_PATTERN = re.compile(r"[A-Za-z_][A-Za-z0-9_]{0,63}")
 #: an element's value and limits (SI): the product or quotient of any ten stays a normal float (m = k = 1e308 gave a state
 #: matrix whose eigenvalues came out 0, the model "resolved" at any rate); physical parts lie well inside (1 pF, 1e12 N/m)
 VALUE_RANGE = (1e-30, 1e30)
+#: what one model file may ask for, checked on the raw document before any element is built: a graph's structure and
+#: causality checks grow with elements x bonds, its eigenvalues with states cubed (14,000 C elements ran past 120 s)
+MAX_ELEMENTS = 500
+MAX_BONDS = 1000
+MAX_STATES = 100
+#: problems an error message lists before it counts the rest (15,000 of them made a 1.6 GB line)
+LISTED_PROBLEMS = 8
+#: names taken by the measurement files' own columns
+RESERVED_NAMES = ("t",)
 _FIELDS = ("name", "description", "elements", "bonds", "load")
 _C_FORMS = {"stiffness": CForm.STIFFNESS, "compliance": CForm.CAPACITANCE}
 _KINDS = tuple(kind.value for kind in Kind)
@@ -104,10 +116,26 @@ def load_model_file(path: str | os.PathLike[str]) -> SystemModel:
 def model_from_data(data: Any, source: str = "dict") -> SystemModel:
     """Check the plain data of a model file and build its SystemModel; raises ModelFileError naming ``source``."""
     problems = _Problems()
-    model = _build(data, problems)
+    model = _build(data, problems) if _within_bounds(data, problems) else None
     if problems or model is None:
-        raise ModelFileError(f"model file {source}: {'; '.join(problems)}")
+        raise ModelFileError(f"model file {source}: {problems.summary()}")
     return model
+
+
+def _within_bounds(data: Any, problems: _Problems) -> bool:
+    """The counts of elements, bonds and states (I and C elements) at most MAX_ELEMENTS, MAX_BONDS and MAX_STATES."""
+    if not isinstance(data, dict):
+        return True  # _build says what the top level must be
+    elements, bonds = data.get("elements"), data.get("bonds")
+    if isinstance(elements, dict) and len(elements) > MAX_ELEMENTS:
+        problems.add("elements", f"{len(elements)} elements; a model file holds at most {MAX_ELEMENTS}")
+    if isinstance(bonds, list) and len(bonds) > MAX_BONDS:
+        problems.add("bonds", f"{len(bonds)} bonds; a model file holds at most {MAX_BONDS}")
+    if isinstance(elements, dict) and not problems:
+        states = sum(isinstance(spec, dict) and spec.get("kind") in ("I", "C") for spec in elements.values())
+        if states > MAX_STATES:
+            problems.add("elements", f"{states} storage elements (I, C), each a state; a model holds at most {MAX_STATES} states")
+    return not problems
 
 
 class _Problems(list[str]):
@@ -115,6 +143,27 @@ class _Problems(list[str]):
 
     def add(self, where: str, expected: str) -> None:
         self.append(f"{where}: {expected}")
+
+    def summary(self) -> str:
+        """The first LISTED_PROBLEMS problems, then how many in all."""
+        shown = "; ".join(_cut(problem, 300) for problem in self[:LISTED_PROBLEMS])
+        return shown + (f"; ... ({len(self)} problems in all)" if len(self) > LISTED_PROBLEMS else "")
+
+
+def _cut(text: str, length: int) -> str:
+    """``text`` cut to ``length`` characters (a value quoted whole can be as long as the file)."""
+    return text if len(text) <= length else text[: length - 3] + "..."
+
+
+def _listed(names: list[str]) -> str:
+    """Names for a message: the first LISTED_PROBLEMS, then how many in all."""
+    shown = ", ".join(map(str, names[:LISTED_PROBLEMS]))
+    return shown + (f", ... ({len(names)} in all)" if len(names) > LISTED_PROBLEMS else "")
+
+
+def printable(text: str) -> str:
+    """``text`` with its control characters (a terminal's escape sequences) written as escapes, for printing."""
+    return "".join(c if c.isprintable() or c == " " else c.encode("unicode_escape").decode("ascii") for c in text)
 
 
 def _number(value: Any) -> TypeGuard[float]:
@@ -136,6 +185,9 @@ def _describe(value: Any) -> str:
 
 
 def _name(value: Any, where: str, problems: _Problems) -> bool:
+    if isinstance(value, str) and value in RESERVED_NAMES:
+        problems.add(where, f"the name {value!r} is reserved (the time column of measurement files); choose another")
+        return False
     if isinstance(value, str) and NAME_PATTERN.fullmatch(value):
         return True
     problems.add(where, f"expected a name of letters, digits and _ that starts with a letter or _ (at most 64), got {_describe(value)}")
@@ -154,6 +206,8 @@ def _build(data: Any, problems: _Problems) -> SystemModel | None:
     if elements:
         _ports(elements, bonds, problems)
         _source_values(elements, _load_source(data.get("load"), elements), problems)
+    if not problems:
+        _connected(elements, bonds, problems)
     if problems or load is None:
         return None
     graph = BondGraph()
@@ -247,10 +301,10 @@ def _element(where: str, spec: dict[str, Any], problems: _Problems) -> _Element 
             problems.add(f"{where}.{key}", f"not a field of a {kind.value} element; expected {', '.join(sorted(allowed))}")
     checked = _Element(kind)
     if "unit" in spec:
-        if isinstance(spec["unit"], str):
+        if isinstance(spec["unit"], str) and printable(spec["unit"]) == spec["unit"]:
             checked.unit = spec["unit"]
         else:
-            problems.add(f"{where}.unit", f"expected text such as N/m, got {_describe(spec['unit'])}")
+            problems.add(f"{where}.unit", f"expected text such as N/m (no control characters), got {_describe(spec['unit'])}")
     if kind.is_source and "value" in spec:
         if _number(spec["value"]):
             checked.value = float(spec["value"])
@@ -283,7 +337,7 @@ def _parameter(where: str, spec: dict[str, Any], checked: _Element, problems: _P
     if "limits" in spec:
         limits = spec["limits"]
         if not (isinstance(limits, list) and len(limits) == 2 and all(_number(v) and v > 0 for v in limits)):
-            got = limits if isinstance(limits, list) else _describe(limits)
+            got = _cut(repr(limits), 60) if isinstance(limits, list) else _describe(limits)
             problems.add(f"{where}.limits", f"expected [lower, upper], two finite numbers > 0, got {got}")
         elif not limits[0] <= value <= limits[1] or not limits[0] < limits[1]:
             problems.add(f"{where}.limits", f"{limits} must satisfy lower < upper and contain the value {value}")
@@ -314,12 +368,13 @@ def _bonds(raw: Any, elements: list[str], problems: _Problems) -> list[tuple[str
     for i, bond in enumerate(raw):
         where = f"bonds[{i}]"
         if not (isinstance(bond, list) and len(bond) == 2 and all(isinstance(end, str) for end in bond)):
-            problems.add(where, f"expected [tail, head], two element names, got {bond if isinstance(bond, list) else _describe(bond)}")
+            got = _cut(repr(bond), 60) if isinstance(bond, list) else _describe(bond)
+            problems.add(where, f"expected [tail, head], two element names, got {got}")
             continue
         tail, head = bond
         unknown = [end for end in bond if end not in elements]
         if unknown:
-            problems.add(where, f"[{tail}, {head}]: unknown element {unknown[0]!r}; expected one of {', '.join(map(str, elements))}")
+            problems.add(where, f"[{tail}, {head}]: unknown element {unknown[0]!r}; expected one of {_listed(elements)}")
         elif tail == head:
             problems.add(where, f"[{tail}, {head}] joins an element to itself; expected two different elements")
         else:
@@ -341,6 +396,24 @@ def _ports(elements: Mapping[str, _Element], bonds: list[tuple[str, str]], probl
             problems.add(where, f"a {kind.value} element needs {expected}, has {ins} in and {outs} out")
         elif not (kind.is_junction or kind.is_two_port) and ins + outs != 1:
             problems.add(where, f"a {kind.value} element needs exactly 1 bond, has {ins + outs}")
+
+
+def _connected(elements: Mapping[str, _Element], bonds: list[tuple[str, str]], problems: _Problems) -> None:
+    """Every element bonded, through the graph, to a source: a part no source reaches keeps an EA of 0."""
+    neighbours: dict[str, list[str]] = {name: [] for name in elements}
+    for tail, head in bonds:
+        neighbours[tail].append(head)
+        neighbours[head].append(tail)
+    reached = {name for name, spec in elements.items() if spec.kind.is_source}
+    stack = list(reached)
+    while stack:
+        for other in neighbours[stack.pop()]:
+            if other not in reached:
+                reached.add(other)
+                stack.append(other)
+    cut_off = [name for name in elements if name not in reached]
+    if cut_off:
+        problems.add("bonds", f"{_listed(cut_off)} not connected to any source (their EA would stay 0); bond them to the system or remove them")
 
 
 @dataclass(frozen=True)

@@ -12,3 +12,10 @@ limit; checked before anything is allocated (10,000 s at 100 Hz)."""
 MAX_LOAD = 1e9
 """Largest load value (the load source's unit, N, V, ...) a scenario may ask for: powers are products of two
 signals, and squares of larger values leave float64's accurate range (1e300 overflowed to inf)."""
+
+MAX_SINES = 1000
+"""Most sines a scenario's load may sum."""
+
+MAX_SINE_TERMS = 100_000_000
+"""Most samples x sines a scenario's load may ask for (each a sine evaluated; about a second of work): 24,000 sines over
+a run asked for 179 GiB at once."""

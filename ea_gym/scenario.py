@@ -39,7 +39,7 @@ from ea_gym.degradation import PiecewiseLinearProfile, ProfileError
 from ea_gym.documents import DocumentError, read_document
 from ea_gym.model_files import is_model_file, load_system
 from ea_gym.models import ParameterError, SystemModel
-from ea_gym.numerics import MAX_LOAD, MAX_SAMPLES
+from ea_gym.numerics import MAX_LOAD, MAX_SAMPLES, MAX_SINE_TERMS, MAX_SINES
 
 if TYPE_CHECKING:
     from ea_gym.loads import Load
@@ -51,6 +51,10 @@ Integer = Annotated[int, Strict()]
 LoadValue = Annotated[float, Strict(), Field(ge=-MAX_LOAD, le=MAX_LOAD)]
 
 
+#: problems a refusal's message lists before it counts the rest (each cut at 300 characters)
+LISTED_PROBLEMS = 8
+
+
 class ScenarioError(ValueError):
     """An invalid scenario; the message lists one ``<field.path>: <expected>`` line per problem."""
 
@@ -58,7 +62,9 @@ class ScenarioError(ValueError):
 
     @classmethod
     def from_problems(cls, source: str, problems: Sequence[str]) -> ScenarioError:
-        error = cls("\n  ".join([f"invalid scenario ({source}):", *problems]))
+        shown = [problem if len(problem) <= 300 else problem[:297] + "..." for problem in problems[:LISTED_PROBLEMS]]
+        more = [f"... ({len(problems)} problems in all)"] if len(problems) > LISTED_PROBLEMS else []
+        error = cls("\n  ".join([f"invalid scenario ({source}):", *shown, *more]))
         error.problems = tuple(problems)
         return error
 
@@ -92,7 +98,7 @@ class SinesLoadSpec(_Spec):
 
     kind: Literal["sines"]
     offset: LoadValue = 0.0
-    sines: list[SineSpec]
+    sines: list[SineSpec] = Field(max_length=MAX_SINES)
 
     def make(self) -> Load:
         from ea_gym.loads import Sine, SinesLoad
@@ -323,7 +329,12 @@ def _sampling_problems(spec: ScenarioSpec) -> list[str]:
             f"load.bandwidth: {spec.load.bandwidth!r} Hz must be below the Nyquist frequency "
             f"sample_rate / 2 = {spec.sample_rate / 2!r} Hz"
         )
-    if isinstance(spec.load, SinesLoadSpec):
+    if isinstance(spec.load, SinesLoadSpec) and samples * len(spec.load.sines) > MAX_SINE_TERMS:
+        problems.append(
+            f"load.sines: {len(spec.load.sines)} sines over {samples:g} samples are {samples * len(spec.load.sines):g} sine terms; "
+            f"at most {MAX_SINE_TERMS} per run (fewer sines or a shorter run)"
+        )
+    elif isinstance(spec.load, SinesLoadSpec):
         for i, sine in enumerate(spec.load.sines):
             if not sine.frequency < spec.sample_rate / 2:
                 problems.append(

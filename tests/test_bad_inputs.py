@@ -7,12 +7,14 @@ traceback, and nothing written. The CLI reference (docs/cli.md) states how many 
 from __future__ import annotations
 
 import errno
+import io
 import json
 import math
 import os
 import shutil
 import subprocess
 import sys
+import zipfile
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -191,11 +193,54 @@ def _resume_in_place_with_a_link(link: str) -> Setup:
     return setup
 
 
-def _agent_json_linked_to_dev_zero(tmp: Path) -> list[str]:
+def _linked_to_dev_zero(name: str) -> Setup:
+    def setup(tmp: Path) -> list[str]:
+        agent = _agent(tmp)
+        (agent / name).unlink()
+        (agent / name).symlink_to("/dev/zero")
+        return ["benchmark", "--ppo", str(agent), "--episodes", "1", "--out", str(tmp / "out")]
+
+    return setup
+
+
+def _model_yaml(tmp: Path, text: str) -> list[str]:
+    return ["model", str(_write(tmp / "model.yaml", text))]
+
+
+def _many(kind: str, count: int) -> str:
+    """NO_LIMITS_MODEL with ``count`` more elements of ``kind`` (C elements bonded to the mass's junction)."""
+    extra = "".join(f"  x{i}: {{kind: C, form: stiffness, value: 1.0}}\n" if kind == "C" else f"  x{i}: {{kind: \"0\"}}\n" for i in range(count))
+    bonds = "".join(f", [v, x{i}]" for i in range(count)) if kind == "C" else ""
+    return NO_LIMITS_MODEL.replace("bonds: [", extra + "bonds: [").replace("[F, v]]", "[F, v]" + bonds + "]")
+
+
+ISLAND_MODEL = NO_LIMITS_MODEL.replace(
+    "bonds: [", "  w: {kind: \"1\"}\n  m2: {kind: I, value: 1.0}\n  b2: {kind: R, value: 1.0}\nbonds: [[w, m2], [w, b2], ")
+
+
+def _many_columns(tmp: Path) -> list[str]:
+    return _measurements_case(",".join(f"c{i}" for i in range(60_000)) + "\n")(tmp)
+
+
+def _late_times(tmp: Path) -> list[str]:
+    """A record at 100 Hz whose times are seconds since 1970 (around 1.7e9 s) written to 1e12 s: float64 holds 1e-4 s there."""
+    return _measurements_case("t,F,m,k\n" + "".join(f"{1e12 + i / 100:.2f},10,0,0\n" for i in range(300)))(tmp)
+
+
+def _truncated_weights(tmp: Path) -> list[str]:
+    """policy.safetensors with one tensor cut to another shape."""
+    from safetensors.numpy import load_file, save_file
+
     agent = _agent(tmp)
-    (agent / "agent.json").unlink()
-    (agent / "agent.json").symlink_to("/dev/zero")
+    tensors = load_file(agent / "policy.safetensors")
+    name = sorted(tensors)[0]
+    tensors[name] = tensors[name][..., :1].copy()
+    save_file(tensors, agent / "policy.safetensors")
     return ["benchmark", "--ppo", str(agent), "--episodes", "1", "--out", str(tmp / "out")]
+
+
+def _sines(count: int, **changes: Any) -> dict[str, Any]:
+    return scenario(load={"kind": "sines", "sines": [{"amplitude": 1.0, "frequency": 1.0}] * count}, **changes)
 
 
 CLI_CASES: list[tuple[str, Setup, str]] = [
@@ -271,8 +316,51 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
      "agent/checkpoints is a symbolic link; expected"),
     ("train --resume R --out R, a checkpoint a link", _resume_in_place_with_a_link("checkpoints/ppo_1000_steps"),
      "agent/checkpoints/ppo_1000_steps is a symbolic link; expected"),
-    ("benchmark --ppo an agent.json linked to /dev/zero", _agent_json_linked_to_dev_zero, "agent/agent.json is a symbolic link"),
+    ("benchmark --ppo an agent.json linked to /dev/zero", _linked_to_dev_zero("agent.json"), "agent/agent.json is a symbolic link"),
+    # bounds on what a file asks for, checked before anything is allocated (these also run under a memory cap: BOUNDED)
+    ("a scenario of 24,000 sines", _scenario_case(_sines(24_000)), "load.sines: List should have at most 1000 items"),
+    ("999 sines above Nyquist", _scenario_case(scenario(load={"kind": "sines", "sines": [{"amplitude": 1.0, "frequency": 1e3}] * 999})),
+     "load.sines[7].frequency: 1000.0 Hz must be below the Nyquist frequency sample_rate / 2 = 50.0 Hz; ... (999 problems in all)"),
+    ("1000 sines over 1e6 samples", _scenario_case(_sines(1000, duration=10_000.0)),
+     "load.sines: 1000 sines over 1e+06 samples are 1e+09 sine terms; at most 100000000 per run"),
+    ("a model file of 15,000 unbonded junctions", lambda tmp: _model_yaml(tmp, _many("0", 15_000)),
+     "elements: 15005 elements; a model file holds at most 500"),
+    ("a model file of 400 unbonded junctions", lambda tmp: _model_yaml(tmp, _many("0", 400)),
+     "elements.x7: a 0-junction needs at least 2 bonds, has 0; ... (400 problems in all)"),
+    ("a model file of 14,000 C elements", lambda tmp: _model_yaml(tmp, _many("C", 14_000)),
+     "elements: 14005 elements; a model file holds at most 500"),
+    ("a model file of 101 states", lambda tmp: _model_yaml(tmp, _many("C", 100)),
+     "elements: 102 storage elements (I, C), each a state; a model holds at most 100 states"),
+    ("a model file of 1001 bonds", lambda tmp: _model_yaml(tmp, NO_LIMITS_MODEL.replace("[F, v]]", "[F, v]" + ", [v, m]" * 997 + "]")),
+     "bonds: 1001 bonds; a model file holds at most 1000"),
+    ("a CSV header of 60,000 columns", _many_columns, "the header has 60000 columns; a record has at most 1024"),
+    ("agent.json net_arch [30000, 30000]", _benchmark_edited(lambda d: d["policy"]["kwargs"].update(net_arch=[30_000, 30_000])),
+     "policy.kwargs.net_arch [30000, 30000] makes a network of 1.8e+09 parameters; at most 1e+07"),
+    ("agent.json action n 1e9", _benchmark_edited(lambda d: d["action_space"].update(n=10**9)),
+     "action_space.n must be an integer in [1, 1024], got 1000000000"),
+    ("agent.json n_steps 1e8", _resume_edited(lambda d: d["hyperparameters"].update(n_steps=10**8)),
+     "hyperparameters.n_steps = 100000000 makes a training buffer of 22.4 GiB per environment; at most 1 GiB"),
+    # silently wrong before
+    ("parts not connected to any source", lambda tmp: _model_yaml(tmp, ISLAND_MODEL),
+     "bonds: w, m2, b2 not connected to any source (their EA would stay 0)"),
+    ("an element named t", lambda tmp: _model_yaml(tmp, NO_LIMITS_MODEL.replace("  k:", "  t:").replace("[v, k]", "[v, t]")),
+     "elements.t: the name 't' is reserved (the time column of measurement files)"),
+    ("a terminal escape in a unit", lambda tmp: _model_yaml(tmp, NO_LIMITS_MODEL.replace("unit: kg", 'unit: "\\e[2Jkg"')),
+     "elements.m.unit: expected text such as N/m (no control characters), got '\\x1b[2Jkg'"),
+    # unclear before
+    ("a 5,000-digit integer", lambda tmp: _model_yaml(tmp, NO_LIMITS_MODEL.replace("value: 0.5", "value: 1" + "0" * 5000)),
+     "model.yaml: line 7, field 'value': a number of 5001 digits; expected a number of at most 4300 digits"),
+    ("t around 1e12 s", _late_times,
+     "column 't': times up to 1e+12 s are too large for their resolution: a float64 there resolves 0.000122 s"),
+    ("a policy tensor of another shape", _truncated_weights, "has shape ["),
+    ("benchmark --ppo a policy.safetensors linked to /dev/zero", _linked_to_dev_zero("policy.safetensors"),
+     "agent/policy.safetensors is a symbolic link"),
 ]
+
+#: the cases of bounds, run again in a process whose memory is capped (``test_bounds_hold_under_a_memory_cap``)
+BOUNDED = ["a scenario of 24,000 sines", "1000 sines over 1e6 samples", "a model file of 15,000 unbonded junctions",
+           "a model file of 14,000 C elements", "a model file of 101 states", "a CSV header of 60,000 columns",
+           "agent.json net_arch [30000, 30000]", "agent.json action n 1e9", "agent.json n_steps 1e8"]
 
 
 def _snapshot(directory: Path) -> set[str]:
@@ -297,6 +385,62 @@ def test_a_bad_command_line_is_one_clean_line(setup: Setup, fragment: str, tmp_p
     assert fragment in lines[0]
     assert "Traceback" not in stderr
     assert _snapshot(tmp_path) == before  # nothing written
+
+
+#: the address space a bound's refusal runs in: numpy, pydantic and gymnasium imported, far from what the inputs asked for
+MEMORY_CAP = 2 << 30
+#: Python's first line in such a process
+CAPPED = f"import resource, sys, warnings; resource.setrlimit(resource.RLIMIT_AS, ({MEMORY_CAP}, {MEMORY_CAP})); "
+
+
+@pytest.mark.parametrize("name", BOUNDED)
+def test_bounds_hold_under_a_memory_cap(name: str, tmp_path: Path) -> None:
+    """The refusal comes before the allocation: the command runs in a process of at most MEMORY_CAP bytes."""
+    setup, fragment = next(case[1:] for case in CLI_CASES if case[0] == name)
+    argv = setup(tmp_path)
+    code = CAPPED + "from ea_gym.cli import main; sys.exit(main(sys.argv[1:]))"
+    result = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, cwd=tmp_path,
+                            env={**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"})
+    assert result.returncode == 2 and result.stderr.count("\n") == 1 and fragment in result.stderr, result.stderr[-2000:]
+
+
+def test_an_error_line_stays_short(tmp_path: Path) -> None:
+    """400 problems are counted, not listed: the line names the first few."""
+    with pytest.raises(ValueError) as info:
+        main(["--debug", *_model_yaml(tmp_path, _many("0", 400))])
+    assert len(str(info.value)) < 1200
+
+
+def test_a_description_is_printed_with_its_escapes_shown(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    text = NO_LIMITS_MODEL.replace("name: smd_no_limits", 'name: smd_no_limits\ndescription: "\\e]0;owned\\a a model"')
+    assert main(_model_yaml(tmp_path, text)) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert first == "smd_no_limits: \\x1b]0;owned\\x07 a model"
+
+
+def test_a_float_without_a_dot_is_a_number(tmp_path: Path) -> None:
+    """YAML 1.1 reads 5e-1 as text; model files and scenarios read it as the number JSON does."""
+    from ea_gym.model_files import load_model_file
+
+    model = load_model_file(_write(tmp_path / "model.yaml", NO_LIMITS_MODEL.replace("value: 0.5", "value: 5e-1")))
+    assert model.nominal["b"] == 0.5
+
+
+def test_a_cache_entry_declaring_a_huge_array_is_rebuilt(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A member whose header declares shape (1e11,): ignored with a warning, from its header, before any array is made;
+    the read runs under a memory cap."""
+    from ea_gym.cache import CACHE_DIR_VARIABLE, entry_path, write_arrays_entry
+
+    monkeypatch.setenv(CACHE_DIR_VARIABLE, str(tmp_path))
+    path = write_arrays_entry("thresholds", "k", {"values": np.zeros(3)})
+    with zipfile.ZipFile(path, "a") as archive:  # a second member declaring 800 GB, holding 24 bytes
+        header = io.BytesIO()
+        np.lib.format.write_array_header_1_0(header, {"descr": "<f8", "fortran_order": False, "shape": (10**11,)})
+        archive.writestr("huge.npy", header.getvalue() + bytes(24))
+    code = CAPPED + "from ea_gym.cache import read_arrays_entry; warnings.simplefilter('error'); read_arrays_entry('thresholds', 'k')"
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env={**os.environ, CACHE_DIR_VARIABLE: str(tmp_path)})
+    assert "RuntimeWarning: ignoring the cache entry" in result.stderr and "rebuilding it" in result.stderr, result.stderr[-2000:]
+    assert entry_path("thresholds", "k", ".npz") == path
 
 
 def test_debug_shows_the_traceback(tmp_path: Path) -> None:
@@ -533,6 +677,14 @@ API_CASES: list[tuple[str, Callable[..., Any], type[Exception], str]] = [
     ("energy_activity with sample_period=0", lambda: energy_activity(np.ones(10), 0.0, window=1.0), ValueError,
      "sample_period must be a finite number of seconds > 0"),
     ("a classifier of an unknown variant", _classifier_variant, ValueError, "variant must be one of paper, strong"),
+    ("an env at 1e6 Hz", lambda: _env(sample_rate=1e6, window_seconds=0.5), ValueError,
+     "sample_rate: 1e+06 Hz makes the threshold calibration simulate 1.44e+09 samples (8 runs of 180 s); at most 10000000"),
+    ("num_envs=10**6", lambda: BondGraphMaintenanceVectorEnv(num_envs=10**6), ValueError, "num_envs must be an int in [1, 4096], got 1000000"),
+    ('vector reset(options={"reset_mak": ...})', lambda: BondGraphMaintenanceVectorEnv(num_envs=2, obs_mode="oracle").reset(
+        options={"reset_mak": np.array([True, False])}), ValueError, "options: unknown key 'reset_mak'; the known keys are ['reset_mask']"),
+    ("single reset(options={...})", lambda: _env(obs_mode="oracle").reset(options={"reset_mask": True}), ValueError,
+     "options: unknown key 'reset_mask'; the known keys are []"),
+    ("single reset(seed=True)", lambda: _env(obs_mode="oracle").reset(seed=True), TypeError, "seed must be an int or None, got True"),
 ]
 
 

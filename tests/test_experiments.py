@@ -226,6 +226,7 @@ def printed(*texts: str) -> Callable[[Path, str], None]:
 #: per script: the arguments beside --smoke (OUT: a fresh folder) and the check of what the run wrote or printed
 RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "benchmarks/bench_against.py": ((), printed("this checkout again: median", "wall: ")),
+    "benchmarks/bench_refusals.py": ((), printed("measurements: 60,000 columns: ", "exit 2: ea-gym phm: error: ", "slowest refusal: ")),
     "benchmarks/bench_simulation.py": (("--json", "OUT/simulation.json"), check_bench_simulation),
     "benchmarks/bench_startup.py": ((), printed("default, cold", "default, warm")),
     "benchmarks/bench_throughput.py": (("--json", "OUT/throughput.json"), check_bench_throughput),

@@ -1,7 +1,8 @@
-"""Generated inputs (hypothesis, bounded and derandomized): scenario, model-file and measurement parsing and the
-environments' settings raise nothing but the project's own validation errors.
+"""Generated inputs (hypothesis, bounded and derandomized): scenario, model-file (data and typed YAML), measurement and
+agent.json parsing and the environments' settings raise nothing but the project's own validation errors, each one line.
 
-A few hundred examples per target keep the file to seconds; ``derandomize`` makes every run draw the same examples.
+A few hundred examples per target (400 each, 2,800 in all) keep the file to seconds; ``derandomize`` makes every run
+draw the same examples.
 """
 
 from __future__ import annotations
@@ -93,6 +94,25 @@ SMD = {
 }
 
 
+SMD_YAML = """\
+name: smd
+elements:
+  F: {kind: Se, unit: N}
+  v: {kind: "1"}
+  m: {kind: I, value: 10.0, unit: kg, limits: [9.0, 11.0]}
+  k: {kind: C, form: stiffness, value: 100.0, limits: [85.0, 105.0]}
+  b: {kind: R, value: 0.5, limits: [0.4, 0.6]}
+bonds: [[v, m], [v, k], [v, b], [F, v]]
+load: {source: F, nominal: 10.0, bandwidth: 2.0}
+"""
+
+
+def _one_line(error: Exception) -> None:
+    """A refusal is one line of bounded length (the CLI prints it as ``ea-gym CMD: error: <it>``, exit code 2)."""
+    message = str(error)
+    assert "\n" not in message and len(message) < 4000, message[:4000]
+
+
 @FUZZ
 @given(st.data())
 def test_model_files(data: st.DataObject) -> None:
@@ -101,8 +121,25 @@ def test_model_files(data: st.DataObject) -> None:
         path.write_text(json.dumps(_mutated(SMD, data)))
         try:
             load_model_file(path)
-        except ModelFileError:
-            pass
+        except ModelFileError as error:
+            _one_line(error)
+
+
+@FUZZ
+@given(st.data())
+def test_model_file_texts(data: st.DataObject) -> None:
+    """YAML as people type it: a good file's text with characters replaced, inserted or cut."""
+    text = SMD_YAML
+    for _ in range(data.draw(st.integers(1, 4))):
+        at = data.draw(st.integers(0, len(text)))
+        text = text[:at] + data.draw(st.sampled_from(["", "e-1", "0" * 5000, "\x1b[2J", "t", "{", "]", ": ", "\n  x: {kind: I}"])) + text[at + 1:]
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "model.yaml"
+        path.write_text(text)
+        try:
+            load_model_file(path)
+        except ModelFileError as error:
+            _one_line(error)
 
 
 CELLS = st.one_of(st.floats(allow_nan=True, allow_infinity=True).map(repr), st.integers(-5, 5).map(str), st.sampled_from(["", "x", "1e999", "-"]))
@@ -117,8 +154,25 @@ def test_measurement_files(rows: list[list[str]], good_header: bool) -> None:
         path.write_text("\n".join([header, *(",".join(row) for row in rows)]) + "\n")
         try:
             read_measurements(path, spring_mass_damper())
-        except MeasurementError:
-            pass
+        except MeasurementError as error:
+            _one_line(error)
+
+
+AGENT = json.loads((Path(__file__).parents[1] / "agents" / "data" / "ppo_oracle" / "agent.json").read_text())
+
+
+@FUZZ
+@given(st.data())
+def test_agent_files(data: st.DataObject) -> None:
+    """agent.json with fields replaced, removed or added at any depth: read (torch's spaces built) or refused by name."""
+    from agents.agent_files import read_agent
+
+    with tempfile.TemporaryDirectory() as tmp:
+        (Path(tmp) / "agent.json").write_text(json.dumps(_mutated(AGENT, data)))
+        try:
+            read_agent(Path(tmp))
+        except ValueError as error:
+            _one_line(error)
 
 
 SETTINGS = ["step_seconds", "window_seconds", "sample_rate", "noise", "horizon", "obs_mode", "costs", "wear", "corrective_rate",

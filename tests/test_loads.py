@@ -91,3 +91,13 @@ def test_random_load_arrays_are_read_only():
     load = RandomLoad.draw(0.0, 1.0, 1.0, np.random.default_rng(0))
     with pytest.raises(ValueError):
         load.frequencies[0] = 0.5
+
+
+def test_a_long_run_of_many_sines_is_summed_in_slices() -> None:
+    """Beyond _multisine's slice (2**20 angles) the sum comes in slices of times: the same values, a bounded memory."""
+    load = SinesLoad(0.5, tuple(Sine(1.0 + i, 0.1 * i, 0.2 * i) for i in range(300)))
+    t = np.arange(5000) / 100.0
+    sliced = load.value(t)
+    whole = np.array([load.value(t[k:k + 1000]) for k in range(0, 5000, 1000)]).ravel()
+    np.testing.assert_allclose(sliced, whole, rtol=1e-12, atol=1e-9)
+    assert load.derivative(t.reshape(50, 100)).shape == (50, 100)

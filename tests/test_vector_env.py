@@ -247,7 +247,7 @@ def test_autoreset_mode_by_name_and_bad_arguments_are_clear_errors():
         venv.step(np.array([0, 7]))
     with pytest.raises(ValueError, match="actions must be 2 ints"):
         venv.step(np.array([0.5, 1.0]))
-    with pytest.raises(ValueError, match="num_envs must be a positive int"):
+    with pytest.raises(ValueError, match="num_envs must be an int in"):
         BondGraphMaintenanceVectorEnv(0)
     with pytest.raises(ValueError, match="list of 2 seeds"):
         venv.reset(seed=[1, 2, 3])

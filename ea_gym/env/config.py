@@ -7,6 +7,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
@@ -17,6 +19,23 @@ OBS_MODES = ("phm", "sensors", "oracle")
 MAX_STEP_SECONDS = 1e7
 #: most steps of an episode (long soaks run with 1e9)
 MAX_HORIZON = 10**9
+#: most systems of one vector environment (each holds its own states, windows and generator)
+MAX_ENVS = 4096
+
+
+def check_reset_arguments(seed: Any, options: Any, known: tuple[str, ...]) -> dict[str, Any]:
+    """reset()'s ``options``, None or a dict of the ``known`` keys (a misspelt key would silently reset every system), as a
+    dict; ``seed`` an int or None here (a bool is no seed). TypeError or ValueError naming the argument otherwise."""
+    if seed is not None and (isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer))):
+        raise TypeError(f"seed must be an int or None, got {seed!r}")
+    if options is None:
+        return {}
+    if not isinstance(options, dict):
+        raise TypeError(f"options must be a dict or None, got {type(options).__name__}")
+    unknown = [key for key in options if key not in known]
+    if unknown:
+        raise ValueError(f"options: unknown key {unknown[0]!r}; the known keys are {list(known)}")
+    return options
 
 
 @dataclass(frozen=True)

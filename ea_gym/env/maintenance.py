@@ -12,7 +12,7 @@ from gymnasium import spaces
 
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.env.actions import DEFAULT_ACTION_KINDS, HandlerFactory
-from ea_gym.env.config import EnvConfig, env_config
+from ea_gym.env.config import EnvConfig, check_reset_arguments, env_config
 from ea_gym.env.core import MaintenanceCore
 from ea_gym.env.infos import check_info_layout
 from ea_gym.env.observations import Observation
@@ -149,6 +149,7 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
         self._episode_over = True  # no episode before the first reset
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[Observation, dict[str, Any]]:
+        check_reset_arguments(seed, options, known=())
         super().reset(seed=seed)
         observation = self.core.reset([self.np_random])
         self._history = []

@@ -34,6 +34,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from ea_gym.env.config import MAX_ENVS, check_reset_arguments
 from ea_gym.env.core import MaintenanceCore
 from ea_gym.env.infos import StepInfo, check_info_layout
 from ea_gym.env.maintenance import build_core
@@ -65,8 +66,8 @@ class BondGraphMaintenanceVectorEnv(HorizonSpec, VectorEnv[Observation, np.ndarr
         info_layout: str = "nested",
         **kwargs: Any,
     ):
-        if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and num_envs > 0):
-            raise ValueError(f"num_envs must be a positive int, got {num_envs!r}")
+        if not (isinstance(num_envs, int) and not isinstance(num_envs, bool) and 0 < num_envs <= MAX_ENVS):
+            raise ValueError(f"num_envs must be an int in [1, {MAX_ENVS}], got {num_envs!r}")
         if render_mode is not None:
             raise ValueError(f"the batched environment does not render; render_mode must be None, got {render_mode!r}")
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
@@ -103,7 +104,7 @@ class BondGraphMaintenanceVectorEnv(HorizonSpec, VectorEnv[Observation, np.ndarr
         going), or None. The infos hold the reset systems' info; the others keep their last observation.
         """
         seeds = self._seeds(seed)
-        mask = _reset_mask((options or {}).get("reset_mask"), self.num_envs)
+        mask = _reset_mask(check_reset_arguments(None, options, known=("reset_mask",)).get("reset_mask"), self.num_envs)
         if mask is not None and self._observation is None:
             raise RuntimeError("reset(options={'reset_mask': ...}) needs a first reset of every system")
         systems = np.ones(self.num_envs, dtype=bool) if mask is None else mask

@@ -29,6 +29,10 @@ from dataclasses import dataclass, field
 
 from ea_gym.diagnosis.monitor import MonitorConfig
 
+#: most samples the threshold calibration may simulate, its runs together (each sample holds every state, signal and
+#: element power of a run: about 0.6 GB at this bound)
+MAX_CALIBRATION_SAMPLES = 10_000_000
+
 
 @dataclass(frozen=True)
 class ChainTiming:
@@ -357,3 +361,13 @@ class PHMConfig:
     joint: JointFilterConfig = field(default_factory=JointFilterConfig)
     extrapolation: ExtrapolationConfig = field(default_factory=ExtrapolationConfig)
     fit: ModelFitConfig = field(default_factory=ModelFitConfig)
+
+    def __post_init__(self) -> None:
+        samples = self.detector.calibration_runs * self.detector.calibration_duration * self.timing.sample_rate
+        if samples > MAX_CALIBRATION_SAMPLES:  # checked before the calibration allocates them (1e6 Hz asked for 86 GiB)
+            raise ValueError(
+                f"sample_rate: {self.timing.sample_rate:g} Hz makes the threshold calibration simulate {samples:g} samples "
+                f"({self.detector.calibration_runs} runs of {self.detector.calibration_duration:g} s); at most "
+                f"{MAX_CALIBRATION_SAMPLES} (a sample rate of at most "
+                f"{MAX_CALIBRATION_SAMPLES / (self.detector.calibration_runs * self.detector.calibration_duration):g} Hz)"
+            )
