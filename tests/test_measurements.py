@@ -596,12 +596,15 @@ def _road_velocity(t: np.ndarray) -> np.ndarray:
     return 0.05 * np.sin(2 * np.pi * 1.3 * t) + 0.03 * np.sin(2 * np.pi * 3.1 * t + 1.0) + 0.02 * np.sin(2 * np.pi * 0.7 * t + 2.0)
 
 
-def _quarter_car_record(rate: float, duration: float, noise: float = NOISE) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _quarter_car_record(
+    rate: float, duration: float, noise: float = NOISE, parts: tuple[float, ...] = (50000.0, 40.0, 16000.0, 1000.0, 250.0)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """t, the road velocity and the signals (tyre deflection, wheel velocity, strut deflection, body velocity: the model's
-    states kt, mu, ks, ms) of the quarter car's own equations integrated by solve_ivp, with sensor noise."""
+    states kt, mu, ks, ms) of the quarter car's own equations (``parts``: kt, mu, ks, cs, ms) integrated by solve_ivp, with
+    sensor noise."""
     from scipy.integrate import solve_ivp
 
-    kt, mu, ks, cs, ms = 50000.0, 40.0, 16000.0, 1000.0, 250.0
+    kt, mu, ks, cs, ms = parts
 
     def motion(time: float, x: np.ndarray) -> list[float]:
         tyre, wheel, strut, body = x
@@ -669,6 +672,60 @@ def test_quarter_car_at_204_8_hz_with_rounded_timestamps_runs_at_the_declared_ra
     assert "The record's 204.8 Hz are resampled to 210 Hz" in printed and printed.splitlines()[-1].startswith("no fault detected")
     results = json.loads((out / "results.json").read_text())
     assert results["detection_time"] is None and results["run"]["sample_rate"] == 210.0
+
+
+# a stiff corner (tyre 160 kN/m on a 35 kg wheel): the expm of its transition rounds at 4e-11 (100 Hz) to 2e-10 (50 Hz) of
+# the largest entry, above the interpolant's rtol of 1e-11 at every degree
+STIFF_PARTS = (160000.0, 35.0, 16000.0, 1000.0, 300.0)
+STIFF_QUARTER_CAR = (QUARTER_CAR.replace("value: 50000.0", "value: 160000.0").replace("value: 40.0", "value: 35.0")
+                     .replace("value: 250.0, unit: kg, limits: [230.0, 270.0]", "value: 300.0, unit: kg, limits: [280.0, 320.0]"))
+
+
+@pytest.mark.parametrize("rate", [50.0, 100.0])
+def test_a_stiff_quarter_cars_interpolant_is_accepted_on_its_evaluations_rounding_floor(tmp_path, rate):
+    """No degree reaches rtol; the lowest on the floor is taken, and it matches direct evaluation to the error it reports,
+    at its check points and at points it never saw."""
+    from numpy.polynomial import chebyshev
+
+    from ea_gym.model_files import load_model_file
+    from ea_gym.phm.tracking import FLOOR_BOUND, discretization_fit, transition
+
+    (tmp_path / "model.yaml").write_text(STIFF_QUARTER_CAR)
+    model = load_model_file(tmp_path / "model.yaml")
+    base = model.parameter_vector()
+    for name in ("ks", "cs", "ms"):
+        index = model.state_space.parameter_names.index(name)
+        lo, hi = 0.5 * model.safe_limits[name][0], 1.5 * model.safe_limits[name][1]
+        coefficients, error = discretization_fit(model, index, lo, hi, 1.0 / rate)
+        assert 1e-11 < error <= FLOOR_BOUND and len(coefficients) <= 17
+        for s, allowed in ((chebyshev.chebpts2(129), error), (np.random.default_rng(0).uniform(-1.0, 1.0, 200), 3.0 * error)):
+            theta = np.repeat(base[None], len(s), axis=0)
+            theta[:, index] = lo + (s + 1.0) * 0.5 * (hi - lo)
+            exact = transition(model, theta, 1.0 / rate)
+            approx = chebyshev.chebval(s, coefficients.reshape(len(coefficients), -1)).T.reshape(exact.shape)
+            assert np.max(np.abs(approx - exact)) <= allowed * np.abs(exact).max()
+
+
+def test_a_stiff_quarter_car_record_at_100_hz_runs_healthy(tmp_path, capsys):
+    """Issue 32: a rate the model check accepts runs, the stiff corner too (its record by solve_ivp, 1 % noise)."""
+    from ea_gym.diagnosis.database import DatabaseConfig
+    from ea_gym.diagnosis.training import TrainingConfig, train_isolation
+    from ea_gym.model_files import load_model_file
+
+    model_path = tmp_path / "stiff.yaml"
+    model_path.write_text(STIFF_QUARTER_CAR)
+    database = DatabaseConfig(intervals=1, noise_levels=(NOISE,), n_loads=1, fault_free_runs=1)
+    training = train_isolation(load_model_file(model_path), np.random.default_rng(0), database, TrainingConfig(epochs=5), variants=("strong",))
+    network = training.classifiers["strong"].save(tmp_path / "network.safetensors")
+    t, road, signals = _quarter_car_record(100.0, 30.0, parts=STIFF_PARTS)
+    csv = tmp_path / "corner.csv"
+    csv.write_text("\n".join(["t,zr,kt,mu,ks,ms", *(",".join(f"{v:.9g}" for v in (t[k], road[k], *signals[k])) for k in range(len(t)))]) + "\n")
+    out = tmp_path / "out"
+    assert main(["phm", "--system", str(model_path), "--measurements", str(csv), "--classifier", str(network), "--noise", str(NOISE),
+                 "--out", str(out)]) == 0
+    assert capsys.readouterr().out.splitlines()[-1].startswith("no fault detected")
+    results = json.loads((out / "results.json").read_text())
+    assert results["detection_time"] is None and results["isolated_parameter"] is None and results["run"]["sample_rate"] == 100.0
 
 
 QUARTER_CAR_ERRORS = [

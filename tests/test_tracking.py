@@ -249,3 +249,50 @@ def test_parameter_theta_noise_replaces_the_default_for_the_named_parameters() -
         TrackingEstimator(model, RATE, 0.01, 1, config=TrackingConfig(parameter_theta_noise=(("R1", 1e-3),)))
     with pytest.raises(ValueError, match="parameter_theta_noise"):
         TrackingConfig(parameter_theta_noise=(("b", -1.0),))
+
+
+def _strict_fit(model, index: int, lo: float, hi: float, h: float, rtol: float = 1e-11) -> np.ndarray:
+    """The interpolant under the rule before the rounding floor: the lowest degree that reaches ``rtol``."""
+    from numpy.polynomial import chebyshev
+
+    from ea_gym.phm.tracking import transition
+
+    base = model.parameter_vector()
+
+    def evaluate(s: np.ndarray) -> np.ndarray:
+        theta = np.repeat(base[None], len(s), axis=0)
+        theta[:, index] = lo + (s + 1.0) * 0.5 * (hi - lo)
+        return transition(model, theta, h)
+
+    check = chebyshev.chebpts2(129)
+    exact = evaluate(check)
+    for degree in (8, 16, 24, 32, 48, 64, 96):
+        nodes = chebyshev.chebpts1(degree + 1)
+        coefficients = chebyshev.chebfit(nodes, evaluate(nodes).reshape(len(nodes), -1), degree)
+        approx = chebyshev.chebval(check, coefficients).T.reshape(exact.shape)
+        scale = np.abs(exact).max(axis=0, keepdims=True) + np.finfo(float).tiny
+        if np.max(np.abs(approx - exact) / scale.max()) <= rtol:
+            return coefficients.reshape((degree + 1,) + exact.shape[1:])
+    raise AssertionError("no degree reaches rtol")
+
+
+@pytest.mark.parametrize("name", ["spring_mass_damper", "two_mass_chain"])
+def test_a_model_that_reaches_rtol_keeps_the_strict_rules_interpolant_bit_for_bit(name):
+    from ea_gym.phm.tracking import discretization_fit
+
+    if name == "spring_mass_damper":
+        model = spring_mass_damper()
+    else:
+        from pathlib import Path
+
+        from ea_gym.model_files import load_model_file
+
+        model = load_model_file(Path(__file__).resolve().parents[1] / "experiments" / "models" / "two_mass_chain.yaml")
+    nominal = model.parameter_vector()
+    for parameter, (lower, upper) in model.safe_limits.items():
+        index = model.state_space.parameter_names.index(parameter)
+        lo, hi = 0.5 * min(lower, nominal[index]), 1.5 * max(upper, nominal[index])
+        for rate in (10.0, RATE):
+            coefficients, error = discretization_fit(model, index, lo, hi, 1.0 / rate)
+            assert error <= 1e-11
+            assert np.array_equal(coefficients, _strict_fit(model, index, lo, hi, 1.0 / rate))
