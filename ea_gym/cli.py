@@ -27,6 +27,10 @@ from ea_gym.models import SystemModel
 if TYPE_CHECKING:
     from ea_gym.scenario import Scenario
 
+#: the absolute part of how far --noise may sit from the record's estimate before the command warns: a noise-free record
+#: of a fast model reads ~0.1 % (ea_gym.measurements.noise_estimate)
+NOISE_MARGIN = 0.002
+
 
 def _simulate(args: argparse.Namespace) -> int:
     from ea_gym.files import check_output_directory, staged_output
@@ -204,7 +208,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     measurements = recorded if rate == recorded.sample_rate else resampled(recorded, rate)
     check_duration(measurements, chain_config(rate, 0.0))  # before the calibration and the network
     # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
-    estimate = noise_estimate(recorded, round(recorded.sample_rate))  # over 1 s steps
+    estimate = noise_estimate(recorded, model, round(recorded.sample_rate))  # over 1 s steps, from the model's residuals
     noise = estimate if args.noise is None else args.noise
     # resampled, the record's white noise keeps its density over its own band: white noise of that density at the chain's rate
     chain_noise = noise if rate == recorded.sample_rate else noise * math.sqrt(rate / recorded.sample_rate)
@@ -221,8 +225,11 @@ def _phm_measurements(args: argparse.Namespace) -> int:
         lines.append(f"The record's {recorded.sample_rate:g} Hz are resampled to {rate:g} Hz, a whole number of samples per "
                      f"EA sub-window (ea_gym.measurements.resampled); at that rate the noise reads {chain_noise:.2%}.")
     print("\n".join(lines[1:]))
-    if estimate > 1.5 * noise + 0.002:
+    # the estimate holds to a few % on a record the model explains (noise_estimate): a factor 1.5 either way contradicts --noise
+    if estimate > 1.5 * noise + NOISE_MARGIN:
         print(f"ea-gym phm: warning: --noise {noise:g} is likely too low for this record: alarms may be false", file=sys.stderr)
+    elif noise > 1.5 * estimate + NOISE_MARGIN:
+        print(f"ea-gym phm: warning: --noise {noise:g} is likely too high for this record: faults may be detected late", file=sys.stderr)
     results = write_phm_outputs(
         Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=lines,
         measurements=str(args.measurements),
@@ -370,9 +377,10 @@ def _add_phm(commands: Subcommands) -> None:
         "--noise", type=non_negative_float, metavar="FRACTION",
         help=("with --measurements: the sensors' noise std as a fraction of each signal's RMS over a 1 s step "
               "(0.01 = 1 %%), which the detection thresholds are calibrated for (default: estimated from the "
-              "record, the std of each signal minus its smoothed self over its RMS, ea_gym.measurements."
+              "record, from the innovations of a Kalman filter of the model's nominal values, ea_gym.measurements."
               "noise_estimate). Set it from a fault-free stretch of the record or the sensors' data sheet; "
-              "the command prints the record's estimate and warns when --noise looks too low. Too low raises "
+              "the command prints the record's estimate and warns when --noise is off it by more than a factor "
+              "1.5. Too low raises "
               "alarms on a healthy machine; too high detects faults later."),
     )
     phm.add_argument(
