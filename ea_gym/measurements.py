@@ -425,8 +425,7 @@ def noise_estimate(measurements: Measurements, model: SystemModel, step: int, ro
     quarter car's 1 % at 50 Hz as 4.9 %); without noise at most 0.11 % (dc_motor). About 1 s per 10,000
     samples of four states.
     """
-    from scipy.linalg import expm
-
+    from ea_gym.bondgraph.simulation import HOLD_ORDER, discretize
     from ea_gym.sensors import Sensors
 
     signals = np.asarray(measurements.signals, dtype=float)
@@ -436,15 +435,11 @@ def noise_estimate(measurements: Measurements, model: SystemModel, step: int, ro
     h = float(np.median(np.diff(measurements.t)))
     theta = np.array([model.nominal[name] for name in model.parameter_names], dtype=float)
     mats = model.state_space.matrices(theta)
-    nu = mats.B.shape[-1]
-    # [x; u; du]' = [A x + B u; du / h; 0] over one step: x' = Phi x + G0 u_k + G1 (u_k+1 - u_k)
-    augmented = np.zeros((nx + 2 * nu, nx + 2 * nu))
-    augmented[:nx, :nx], augmented[:nx, nx : nx + nu] = mats.A * h, mats.B * h
-    augmented[nx : nx + nu, nx + nu :] = np.eye(nu)
-    exponential = expm(augmented)
-    phi, g0, g1 = exponential[:nx, :nx], exponential[:nx, nx : nx + nu], exponential[:nx, nx + nu :]
+    step_matrices = discretize(mats.A, mats.B, h)
     inputs = model.source_inputs(np.asarray(measurements.load, dtype=float), np.zeros(samples))[0]
-    drive = inputs[:-1] @ g0.T + (inputs[1:] - inputs[:-1]) @ g1.T
+    # the load held linearly between samples: each interval's Taylor coefficients [u, u', 0, 0] (Gamma's order)
+    held = np.concatenate([inputs[:-1], np.diff(inputs, axis=0) / h, np.zeros((samples - 1, (HOLD_ORDER - 2) * inputs.shape[1]))], axis=1)
+    phi, drive = step_matrices.Phi, held @ step_matrices.Gamma.T
     # in the signals' own units, each over its RMS: C = 1, and any scale of signal keeps the filter conditioned
     scale = np.sqrt(np.mean(signals**2, axis=0))
     scale = np.where(scale > 0, scale, 1.0)
