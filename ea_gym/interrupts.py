@@ -66,6 +66,12 @@ def interrupts_raised() -> Iterator[None]:
         signal.signal(number, _on_signal)
     try:
         yield
+    except Exception as error:
+        if _STATE.received is None:
+            raise
+        # the interruption turned into another error on its way out: a C extension being imported (pybind11's init
+        # reports any exception as "ImportError: initialization failed") or a library that wraps what it catches
+        raise _exception(_STATE.received) from error
     finally:
         for number, handler in previous.items():
             signal.signal(number, handler)

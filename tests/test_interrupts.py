@@ -110,3 +110,19 @@ def test_a_signal_inside_a_held_section_waits_for_its_end_and_a_second_one_is_ig
             finished = True
     assert finished
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the handlers are back
+
+
+def test_an_interruption_that_another_error_swallowed_is_still_the_interruption() -> None:
+    """pybind11 reports an exception raised inside an extension's init as ``ImportError: initialization failed``: the
+    signal that caused it is what leaves, with the other error as its cause."""
+    from ea_gym.interrupts import Terminated, interrupts_raised
+
+    with pytest.raises(Terminated) as caught, interrupts_raised():
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(1.0)
+        except KeyboardInterrupt:
+            raise ImportError("initialization failed") from None
+    assert isinstance(caught.value.__cause__, ImportError)
+    with pytest.raises(ImportError), interrupts_raised():  # with no signal, an error is itself
+        raise ImportError("initialization failed")
