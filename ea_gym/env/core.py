@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ea_gym._kernels.ledger import close_step, outside_limits, take_orders
-from ea_gym.degradation import Wear, WearConfig
+from ea_gym.degradation import PartsWear, Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
@@ -25,9 +25,9 @@ from ea_gym.env.config import EnvConfig
 from ea_gym.env.events import ActionKind, Event, Failure, Replacement, action_table
 from ea_gym.env.infos import StepInfo, cost_items
 from ea_gym.env.observations import Observation, Observer, OracleTruth
-from ea_gym.env.operation import Degradation, Operation
+from ea_gym.env.operation import Degradation, Operation, PartsDegradation
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, classifier_for, thresholds_for
+from ea_gym.phm import HealthStatus, PHMChain, PHMConfig, classifier_for, thresholds_for
 from ea_gym.threads import single_threaded_blas
 
 
@@ -77,7 +77,12 @@ class MaintenanceCore:
         self.limits = np.array([model.safe_limits[c] for c in self.components])
         self._low, self._high = self.limits[:, 0].copy(), self.limits[:, 1].copy()
         wear = config.wear if config.wear is not None else {name: WearConfig() for name in self.components}
-        self.degradation = Degradation(model, wear, self.components, n_systems)
+        self.degradation: Degradation | PartsDegradation
+        if config.concurrent_wear:
+            self.degradation = PartsDegradation(model, wear, self.components, n_systems, config.tolerance, config.background_wear)
+            _check_tolerance(self.degradation, config.tolerance)
+        else:
+            self.degradation = Degradation(model, wear, self.components, n_systems)
         self.chain, self.monitor = _supervision(model, config, wear, n_systems, classifier, calibration_seed)
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
@@ -87,6 +92,7 @@ class MaintenanceCore:
         self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self.observer = Observer(config, n_systems, self.elements, self.rco, self.classes, self.limits, self.nominal[self._component_index])
+        self._rul_columns = self.components if config.concurrent_wear else ()  # what info["true_rul"]'s columns are
         n = n_systems
         self._theta = np.tile(self.nominal, (n, 1))  # true parameter values (N, P)
         self._clock = np.zeros(n)  # degradation time (s)
@@ -122,15 +128,18 @@ class MaintenanceCore:
         return self._theta.copy()
 
     def true_rul(self) -> np.ndarray:
-        """Every system's true remaining useful life (s), (N,)."""
+        """Every system's true remaining useful life (s): (N,) with one fault per system, (N, n) per maintainable
+        component where every part ages (``EnvConfig.concurrent_wear``)."""
         return self.degradation.true_rul(self._theta, self._clock)
 
     def faulty_component(self, i: int) -> str:
-        """The component whose fault system i has (or will have: its arrival may be ahead)."""
+        """The component whose fault system i has (or will have: its arrival may be ahead); one fault per system only."""
+        if isinstance(self.degradation, PartsDegradation):
+            raise ValueError("every part ages (concurrent_wear=True): there is no one faulty component; see true_rul() per part")
         return self.degradation.faulty_component(i)
 
     @property
-    def wear(self) -> Wear:
+    def wear(self) -> Wear | PartsWear:
         """The wear processes of the wearing components."""
         return self.degradation.wear
 
@@ -155,7 +164,7 @@ class MaintenanceCore:
         self._steps[mask] = 0
         self._down[mask] = 0
         self.operation.start(rngs, mask)
-        self.degradation.start(rngs, self._clock, mask)
+        self.degradation.start(rngs, self._clock, mask, self._theta)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
@@ -164,7 +173,7 @@ class MaintenanceCore:
 
     def reset_info(self) -> StepInfo:
         """What the systems report after a reset: their true state, no cost, no event."""
-        return StepInfo.at_reset(self.model.parameter_names, self.true_parameters, self.true_rul(), self.cost_items)
+        return StepInfo.at_reset(self.model.parameter_names, self.true_parameters, self.true_rul(), self.cost_items, self._rul_columns)
 
     # -- the step ---------------------------------------------------------------------------------
 
@@ -199,7 +208,7 @@ class MaintenanceCore:
             self._steps, maintained, failed, dt, self.config.horizon, not self.config.continue_after_failure, terminated, truncated,
         )
         observation = self.observe(outputs)
-        info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events)
+        info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events, self._rul_columns)
         return StepResult(observation=observation, reward=-costs["total"], terminated=terminated, truncated=truncated, info=info)
 
     def _maintain(
@@ -255,26 +264,20 @@ class MaintenanceCore:
     def replace(
         self, systems: np.ndarray, components: np.ndarray, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[Event]]
     ) -> None:
-        """Put a new component ``components[k]`` in system ``systems[k]`` (distinct systems): nominal value,
-        downtime, a new fault where it was the faulty one.
+        """Put a new component ``components[k]`` in system ``systems[k]`` (distinct systems), the machine down for
+        ``downtime`` steps: with one fault per system, at nominal, and a new fault where it was the faulty one;
+        where every part ages, within its tolerance with a new wear process.
 
         The systems are reset together; each draws only from its own generator, as when replaced one by one.
         """
         if len(systems) == 0:
             return
         components = np.asarray(components, dtype=int)
-        parameters = self._component_index[components]
-        self._theta[systems, parameters] = self.nominal[parameters]
+        self.degradation.replace(rngs, self._clock, np.asarray(systems), self._component_index[components], self._theta)
         self._down[systems] = downtime
         self.operation.stop(systems)  # the machine is stopped and restarted
         mask = np.zeros(self.n, dtype=bool)
         mask[systems] = True
-        # the faulty one: a new fault is drawn
-        faulty = self.degradation.faulty_parameters()[systems] == parameters
-        if np.any(faulty):
-            fresh = np.zeros(self.n, dtype=bool)
-            fresh[systems[faulty]] = True
-            self.degradation.start(rngs, self._clock, fresh)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
@@ -287,6 +290,8 @@ class MaintenanceCore:
         window = self.operation.run(self._theta, rngs)
         if self.chain is not None:
             status = self.chain.update(window.measured, window.expected, window.load, window.load_rate)
+            if self.observer.per_part:
+                return {"ea": status.ea, "ea_reference": status.ea_reference, "eai": status.eai, **self._part_outputs(status)}
             return {
                 "ea": status.ea, "ea_reference": status.ea_reference, "eai": status.eai,
                 "diagnosis": status.diagnosis, "estimates": status.estimates, "rul": status.rul,
@@ -296,15 +301,45 @@ class MaintenanceCore:
         eai = component_activity_index(ea, self._rco_index, self.rco)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
 
+    def _part_outputs(self, status: HealthStatus) -> dict[str, np.ndarray]:
+        """Every part's degrading probability (N, n), estimate (N, n, SI) and RUL [point, low, high] (N, n, 3) s, from
+        the joint estimate: each part's value and drift carried to its limits."""
+        estimation, chain = status.estimation, self.chain
+        assert chain is not None  # the phm mode's outputs
+        if estimation.degrading is None:
+            raise ValueError("every part ages (concurrent_wear=True): the chain needs an estimator of every part at once (estimator_kind 'joint')")
+        rul = np.empty((self.n, len(self.components), 3))
+        every = np.ones(self.n, dtype=bool)
+        for d in range(len(self.components)):
+            prognosis = chain.prognosis.update(estimation, np.full(self.n, d + 1), every, status.t)
+            rul[:, d, 0], rul[:, d, 1], rul[:, d, 2] = prognosis.eol, prognosis.eol_low, prognosis.eol_high
+        rul -= status.t[:, None, None]
+        return {"degrading": estimation.degrading, "estimates": estimation.value, "rul": rul}
+
     def observe(self, outputs: dict[str, np.ndarray]) -> Observation:
         """Observation arrays of the step's ``outputs``; systems that are down show idle outputs."""
         oracle = None
         if self.config.obs_mode == "oracle":
-            oracle = OracleTruth(
-                values=self._theta[:, self._component_index], diagnosis_class=self.degradation.diagnosis_class(self._clock),
-                rul=self.true_rul(),
-            )
+            values, rul = self._theta[:, self._component_index], self.true_rul()
+            if isinstance(self.degradation, PartsDegradation):
+                oracle = OracleTruth(values=values, diagnosis_class=None, rul=rul, degrading=self.degradation.degrading(self._clock))
+            else:
+                oracle = OracleTruth(values=values, diagnosis_class=self.degradation.diagnosis_class(self._clock), rul=rul)
         return self.observer.observe(outputs, self._since_maintenance, self._down > 0, oracle)
+
+
+def _check_tolerance(degradation: PartsDegradation, tolerance: float) -> None:
+    """A ValueError naming ``tolerance`` where it would start a part on or outside its safe limits."""
+    span = degradation.limits[:, 1] - degradation.limits[:, 0]
+    nominal = degradation.nominal[degradation.parameter_index]
+    low, high = nominal - tolerance * span, nominal + tolerance * span
+    outside = np.flatnonzero((low <= degradation.limits[:, 0]) | (high >= degradation.limits[:, 1]))
+    if len(outside):
+        d = int(outside[0])
+        raise ValueError(
+            f"tolerance {tolerance:g} starts {degradation.components[d]} anywhere in [{low[d]:g}, {high[d]:g}], not inside its safe limits "
+            f"{tuple(map(float, degradation.limits[d]))}"
+        )
 
 
 def chain_settings(model: SystemModel, config: EnvConfig, wear: dict[str, WearConfig]) -> PHMConfig:
