@@ -234,3 +234,17 @@ def test_the_world_settings_need_the_world_where_every_part_ages():
         gym.make(ENV_IDS[0], background_wear=1e-4)
     with pytest.raises(ValueError, match=r"tolerance 0.3 starts k anywhere in \[94, 106\], not inside its safe limits"):
         gym.make(V1, tolerance=0.3)
+
+
+def test_v1_renders_every_part():
+    env = gym.make(V1, render_mode="ansi", obs_mode="oracle")
+    env.reset(seed=0)
+    env.step(0)
+    text = env.render()
+    assert all(f"{c}: degrading " in text for c in COMPONENTS) and "true RUL=" in text
+    env = gym.make(V1, render_mode="rgb_array")
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(0)
+    image = env.render()
+    assert image.ndim == 3 and image.shape[2] == 3 and image.std() > 0
