@@ -249,11 +249,12 @@ def _column_mapping(pairs: list[tuple[str, str]]) -> dict[str, str]:
 
 def _print_outcome(results: dict, out: str) -> None:
     from ea_gym.reporting import fit_text
-    from ea_gym.reporting.report import isolation_text
+    from ea_gym.reporting.report import degrading_text, isolation_text
 
     detection = results["detection_time"]
     outcome = "no fault detected" if detection is None else f"detection at {detection:g} s, isolated parameter {isolation_text(results)}"
     print(fit_text(results))
+    print(degrading_text(results))
     print(f"{outcome}; wrote {out}/results.json and report.md")
 
 

@@ -92,8 +92,9 @@ def test_components_give_every_part_at_every_step_with_nulls_where_undefined(set
     assert list(components) == list(chain.degradable) == ["k", "m", "b"]
     steps = len(run.statuses)
     for name, series in components.items():
-        assert set(series) == {"t", "value", "std", "degrading", "named", "rul", "rul_low", "rul_high"}
-        assert all(len(values) == steps for values in series.values()), name
+        assert set(series) == {"unit", "limits", "t", "value", "std", "degrading", "named", "rul", "rul_low", "rul_high"}
+        assert series["limits"] == list(scenario.model.safe_limits[name])
+        assert all(len(series[key]) == steps for key in series if key not in ("unit", "limits")), name
         assert series["t"] == run.t.tolist()
     k, m = components["k"], components["m"]
     at_40 = k["t"].index(40.0)
@@ -208,3 +209,20 @@ def test_the_run_says_where_its_noise_levels_and_its_healthy_machine_came_from(s
                                         "source": "healthy.csv"}
     plain = reporting.chain_results(run, chain, scenario)
     assert "commissioning" not in plain and plain["run"]["noise_source"] == "scenario" and "noise_estimate" not in plain["run"]
+
+
+def test_the_report_gives_one_line_per_component_and_the_model_fit(setting, tmp_path) -> None:
+    run, chain, scenario = setting
+    cut = dataclasses.replace(run, statuses=run.statuses[:70], t=run.t[:70])  # 70 s: both ramps on
+    results = reporting.write_phm_outputs(tmp_path / "out", with_parts(cut, chain, scenario), chain, scenario, "two faults")
+    report = (tmp_path / "out" / "report.md").read_text()
+    k = 100 - 60 * 12 / 70 + OFFSET * 100  # N/m at 70 s
+    rul = K_EOL - 70
+    assert (f"| k at 70 s: estimate, degrading probability, RUL and its 95% interval | {k:.4g} +- 1 N/m "
+            f"({(k - 85) / 20:.0%} of its safe range 85-105 N/m); degrading with probability 0.99 (named); "
+            f"RUL {rul:.4g} s [{0.9 * rul:.4g}, {1.1 * rul:.4g}] |") in report
+    assert "| m at 70 s: estimate, degrading probability, RUL and its 95% interval | 10.02 +- 0.1 kg" in report
+    assert "degrading with probability 0.01; no End of Life |" in report
+    assert "| degrading parts (named at the end) | k, b |" in report
+    assert "| model fit | " in report and "| sensor noise (of each signal's RMS) | 1.00% (scenario) |" in report
+    assert reporting.report.degrading_text(results) == "degrading parts: k, b"

@@ -281,7 +281,8 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
             the one isolated at that step, "limit" "lower" or "upper".
         run: scenario file or measurements file, sample rate (Hz), duration, steps, "noise" (the sensor noise level
             the chain ran with) and "noise_source" (:class:`RunInputs`; "noise_estimate", the record's own, where one was
-            made), "load_noise" (the load measurement's) and "load_noise_source", estimate lag, frame (s).
+            made), "load_noise" (the load measurement's) and "load_noise_source", estimate lag, frame (s), "rul_interval"
+            (the confidence of the RUL intervals).
         commissioning: only where the chain ran from a commissioned machine: {"values", "std"} (name -> SI value and
             its std, NaN ones None), "source" (what it was fitted on).
         metrics: only when the scenario has a fault: "fault_parameters" (every faulty parameter), and the
@@ -335,6 +336,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
             "load_noise_source": inputs.load_noise_source,
             "estimate_lag": float(chain.estimate_lag),
             "frame": float(chain.config.isolation.frame),
+            "rul_interval": float(chain.config.extrapolation.confidence),
         },
     }
     if inputs.commissioning is not None:
@@ -370,30 +372,33 @@ def _part_health(run: ChainRun) -> list[PartHealth] | None:
 def component_series(run: ChainRun, chain: PHMChain) -> dict[str, dict[str, Any]]:
     """Every degradable part's series, one entry per step, as ``results.json``'s "components" (JSON-ready, null where undefined).
 
-    Per part: "t" (the step's end, s), "value" (its estimate, SI), "std" (its standard deviation, SI), "degrading" (the
-    probability that it is degrading), "named" (whether it is judged degrading), "rul", "rul_low", "rul_high" (its
-    Remaining Useful Life and the ends of its interval, s; null where no End of Life is predicted), from
+    Per part: "unit" and "limits" (its SI unit and safe limits [lower, upper]); per step "t" (the step's end, s), "value"
+    (its estimate, SI), "std" (its standard deviation, SI), "degrading" (the probability that it is degrading), "named"
+    (whether it is judged degrading), "rul", "rul_low", "rul_high" (its Remaining Useful Life and the ends of its
+    interval, ``ExtrapolationConfig.confidence``, s; null where no End of Life is predicted), from
     ``HealthStatus.parts``. A chain without the joint side filter (``parts`` None) gives its estimator's own estimates
     (``HealthStatus.estimates``, each as if it alone were faulty) and their std, and null for the rest.
     """
     t = run.t.tolist()
+    model = chain.model
+    described = {name: {"unit": model.units.get(name, ""), "limits": list(model.safe_limits[name])} for name in chain.degradable}
     parts = _part_health(run)
     if parts is None:
         value = np.array([s.estimates[0] for s in run.statuses])
         std = np.sqrt(np.array([s.estimation.variance[0] for s in run.statuses]))
         unknown: list[None] = [None] * len(t)
         return {
-            name: {"t": t, "value": json_ready(value[:, d]), "std": json_ready(std[:, d]), "degrading": unknown, "named": unknown,
-                   "rul": unknown, "rul_low": unknown, "rul_high": unknown}
+            name: {**described[name], "t": t, "value": json_ready(value[:, d]), "std": json_ready(std[:, d]), "degrading": unknown,
+                   "named": unknown, "rul": unknown, "rul_low": unknown, "rul_high": unknown}
             for d, name in enumerate(chain.degradable)
         }
     value, std = np.array([p.value[0] for p in parts]), np.array([p.std[0] for p in parts])
     degrading, named = np.array([p.degrading[0] for p in parts]), np.array([p.named[0] for p in parts])
     rul = np.array([p.rul[0] for p in parts])  # (steps, D, 3): point, low, high
     return {
-        name: {"t": t, "value": json_ready(value[:, d]), "std": json_ready(std[:, d]), "degrading": json_ready(degrading[:, d]),
-               "named": json_ready(named[:, d]), "rul": json_ready(rul[:, d, 0]), "rul_low": json_ready(rul[:, d, 1]),
-               "rul_high": json_ready(rul[:, d, 2])}
+        name: {**described[name], "t": t, "value": json_ready(value[:, d]), "std": json_ready(std[:, d]),
+               "degrading": json_ready(degrading[:, d]), "named": json_ready(named[:, d]), "rul": json_ready(rul[:, d, 0]),
+               "rul_low": json_ready(rul[:, d, 1]), "rul_high": json_ready(rul[:, d, 2])}
         for d, name in enumerate(chain.degradable)
     }
 
