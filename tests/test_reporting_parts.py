@@ -226,3 +226,78 @@ def test_the_report_gives_one_line_per_component_and_the_model_fit(setting, tmp_
     assert "| degrading parts (named at the end) | k, b |" in report
     assert "| model fit | " in report and "| sensor noise (of each signal's RMS) | 1.00% (scenario) |" in report
     assert reporting.report.degrading_text(results) == "degrading parts: k, b"
+
+
+# ------------------------------------------------------------------------------------------------
+# figures: every component, its own colour and marker, complete legends, End-of-Life labels that never overprint
+# ------------------------------------------------------------------------------------------------
+
+
+def _label_boxes(figure: Any) -> list[Any]:
+    """The boxes (display units) of every End-of-Life label in the figure, as its renderer draws them."""
+    from matplotlib.text import Annotation
+
+    renderer = figure.canvas.get_renderer()
+    return [text.get_window_extent(renderer) for ax in figure.axes for text in ax.texts if isinstance(text, Annotation)]
+
+
+def _overlaps(boxes: list[Any]) -> int:
+    return sum(a.overlaps(b) for i, a in enumerate(boxes) for b in boxes[i + 1:])
+
+
+def _same_eol(run: ChainRun, chain: PHMChain, scenario: Scenario) -> ChainRun:
+    """Every k End of Life at 97 s, from the estimator and the parts alike: without the placement rule their labels
+    would sit on one another."""
+    k = chain.degradable.index("k")
+    statuses = []
+    for status in with_parts(run, chain, scenario).statuses:
+        t = status.t[0]
+        rul = status.parts.rul.copy()
+        if np.isfinite(rul[0, k, 0]):
+            rul[0, k] = np.array([97.0, 90.0, 104.0]) - t
+        statuses.append(dataclasses.replace(status, parts=dataclasses.replace(status.parts, rul=rul)))
+    return dataclasses.replace(run, statuses=statuses)
+
+
+@pytest.mark.parametrize("name", ["estimate", "rul"])
+def test_every_component_has_its_own_colour_marker_and_complete_legend(setting, monkeypatch, tmp_path, name) -> None:
+    from test_reporting import check_axes, figure_of
+
+    run, chain, scenario = setting
+    run = with_parts(run, chain, scenario)
+    results = reporting.chain_results(run, chain, scenario)
+    figure = figure_of(reporting.PLOTS[name], monkeypatch, run, chain, scenario, tmp_path / "f.png", results=results)
+    check_axes(figure)
+    styles = {}
+    for ax in figure.axes:
+        for line in ax.lines:
+            label = line.get_label()
+            for part in chain.degradable:
+                if label in (f"estimate of {part}", f"predicted RUL of {part}"):
+                    styles[part] = (line.get_color(), line.get_marker())
+    expected = ["k", "m", "b"] if name == "estimate" else ["k", "b"]  # m has no End of Life: no RUL to draw
+    assert sorted(styles) == sorted(expected)
+    assert len(set(styles.values())) == len(styles) and len({color for color, _ in styles.values()}) == len(styles)
+    if name == "estimate":
+        assert len(figure.axes) == 3 and [ax.get_ylabel() for ax in figure.axes] == ["k (N/m)", "m (kg)", "b (N s/m)"]
+
+
+def test_end_of_life_labels_never_overprint(setting, monkeypatch, tmp_path) -> None:
+    """The labels' boxes, as the renderer draws them, do not intersect; with the placement rule turned off the same
+    figures have overlapping labels (the check sees them)."""
+    from test_reporting import figure_of
+
+    run, chain, scenario = setting
+    crowded = _same_eol(run, chain, scenario)
+    results = reporting.chain_results(crowded, chain, scenario)
+    plain = reporting.chain_results(run, chain, scenario)  # without parts: the estimator's suspect alone, three fits
+    figures = [figure_of(reporting.plot_estimate, monkeypatch, crowded, chain, scenario, tmp_path / "a.png", results=results),
+               figure_of(reporting.plot_estimate, monkeypatch, run, chain, scenario, tmp_path / "b.png", results=plain)]
+    for figure, least in zip(figures, (3, 1)):  # k's fit and End of Life at one place, b's; the suspect's fit
+        boxes = _label_boxes(figure)
+        assert len(boxes) >= least and _overlaps(boxes) == 0
+        frames = [ax.get_window_extent(figure.canvas.get_renderer()) for ax in figure.axes]
+        assert all(any(frame.x0 <= box.x0 and box.x1 <= frame.x1 for frame in frames) for box in boxes)  # within an axes' width
+    monkeypatch.setattr(reporting.figures, "place_labels", lambda ax, labels: None)
+    unplaced = figure_of(reporting.plot_estimate, monkeypatch, crowded, chain, scenario, tmp_path / "c.png", results=results)
+    assert _overlaps(_label_boxes(unplaced)) > 0

@@ -132,14 +132,16 @@ def _limit(status: HealthStatus) -> str | None:
     return None if prediction is None else prediction.limit
 
 
-def fault_of(scenario: Scenario | None) -> FaultSpec | None:
-    """The scenario's fault, the truth a run is scored against; None without a fault or a scenario (recorded
-    measurements, whose truth is unknown)."""
-    return None if scenario is None else scenario.fault
+def fault_of(scenario: Scenario | None, parameter: str | None = None) -> FaultSpec | None:
+    """The scenario's fault in ``parameter`` (None: its first fault), the truth a run is scored against; None without
+    one or without a scenario (recorded measurements, whose truth is unknown)."""
+    if scenario is None:
+        return None
+    return next((fault for fault in scenario.faults if parameter is None or fault.parameter == parameter), None)
 
 
 def faulty_parameter(scenario: Scenario | None) -> str | None:
-    """The parameter of the scenario's fault; None without one (:func:`fault_of`)."""
+    """The parameter of the scenario's (first) fault; None without one (:func:`fault_of`)."""
     fault = fault_of(scenario)
     return None if fault is None else fault.parameter
 
@@ -503,7 +505,8 @@ def isolation_outcome(fault_parameter: str, detection_time: float | None, isolat
 def _fault_metrics(scenario: Scenario, parameter: str, detection_time: float | None, isolated_parameter: str | None,
                    estimate: dict[str, Any], predictions: list[dict[str, Any]]) -> dict[str, Any]:
     """``chain_results``'s single-fault "metrics" of the scenario's fault in ``parameter``."""
-    fault = next(fault for fault in scenario.faults if fault.parameter == parameter)
+    fault = fault_of(scenario, parameter)
+    assert fault is not None  # parameter is one of the scenario's faulty parameters
     onset = fault_onset(scenario.model, fault)
     metrics: dict[str, Any] = {
         "fault_parameter": parameter,
