@@ -16,7 +16,7 @@ from ea_gym.reporting.figures import (
     plot_time_frequency,
 )
 from ea_gym.reporting.report import fit_text, write_phm_outputs, write_phm_report
-from ea_gym.reporting.results import ALPHA, ESTIMATION_START, LAMBDA, MIN_PHASE_PREDICTIONS, chain_results
+from ea_gym.reporting.results import ALPHA, ESTIMATION_START, LAMBDA, MIN_PHASE_PREDICTIONS, SETTLING, RunInputs, chain_results
 
 __all__ = [
     "ALPHA",
@@ -26,6 +26,8 @@ __all__ = [
     "MIN_PHASE_PREDICTIONS",
     "PLOTS",
     "RECORDED_CAPTIONS",
+    "RunInputs",
+    "SETTLING",
     "TRUTH_FIGURES",
     "chain_results",
     "fit_text",

@@ -16,7 +16,7 @@ import numpy as np
 from ea_gym.files import staged_output, write_json, write_text
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.reporting.figures import FIGURES, PLOTS, RECORDED_CAPTIONS, TRUTH_FIGURES
-from ea_gym.reporting.results import ALPHA, LAMBDA, chain_results
+from ea_gym.reporting.results import ALPHA, LAMBDA, RunInputs, chain_results
 from ea_gym.scenario import Scenario
 
 
@@ -275,16 +275,19 @@ def write_phm_report(out: Path, results: dict, figures: dict[str, Path], title: 
 
 
 def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scenario | None, title: str,
-                      sections: list[str] | None = None, measurements: str | None = None) -> dict:
+                      sections: list[str] | None = None, measurements: str | None = None, inputs: RunInputs | None = None) -> dict:
     """Results, figures and report of a run in ``out``: ``results.json``, ``report.md`` and the PNGs of
     :data:`FIGURES`. ``scenario`` None: a run of recorded ``measurements`` (their file), whose truth is
     unknown: no metrics and none of the :data:`TRUTH_FIGURES`.
+
+    ``inputs``: where the noise levels and the healthy machine came from (:class:`~ea_gym.reporting.results.RunInputs`;
+    None: the scenario's).
 
     Everything is drawn in a temporary directory beside ``out`` and moved in only when all of it
     succeeded; ``results.json`` is written last, so its presence means the directory is complete.
     Returns the results.
     """
-    results = chain_results(run, chain, scenario, measurements)
+    results = chain_results(run, chain, scenario, measurements, RunInputs() if inputs is None else inputs)
     with staged_output(out, last="results.json") as staging:
         figures = {}
         for name, plot in PLOTS.items():
