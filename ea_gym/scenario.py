@@ -245,7 +245,7 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         """The validated scenario as JSON-ready data; load_scenario(to_dict()) gives it back."""
-        return self.spec.model_dump(mode="json")
+        return self.spec.model_dump(mode="json", exclude_none=True)
 
 
 def _field_path(loc: Sequence[str | int]) -> str:

@@ -71,9 +71,13 @@ def test_one_fault_in_either_form_is_the_same_scenario() -> None:
 
 
 def test_faults_survive_the_round_trip_through_to_dict() -> None:
+    """Each form comes back as written: a scenario of one ``fault`` gains no ``faults`` key (scripts that replace its
+    ``fault`` keep working), one of ``faults`` no ``fault`` key."""
     scenario = two_faults()
-    again = ea_gym.load_scenario(scenario.to_dict())
-    assert again.faults == scenario.faults
+    data = scenario.to_dict()
+    assert "fault" not in data and ea_gym.load_scenario(data).faults == scenario.faults
+    single = ea_gym.load_scenario({**TWO_FAULTS, "faults": None, "fault": TWO_FAULTS["faults"][0]}).to_dict()
+    assert "faults" not in single and ea_gym.load_scenario(single).faults == scenario.faults[:1]
 
 
 @pytest.mark.parametrize("faults, fragment", [
