@@ -259,7 +259,7 @@ def _same_eol(run: ChainRun, chain: PHMChain, scenario: Scenario) -> ChainRun:
     return dataclasses.replace(run, statuses=statuses)
 
 
-@pytest.mark.parametrize("name", ["estimate", "rul"])
+@pytest.mark.parametrize("name", ["estimate", "rul", "estimate_error"])
 def test_every_component_has_its_own_colour_marker_and_complete_legend(setting, monkeypatch, tmp_path, name) -> None:
     from test_reporting import check_axes, figure_of
 
@@ -273,9 +273,9 @@ def test_every_component_has_its_own_colour_marker_and_complete_legend(setting, 
         for line in ax.lines:
             label = line.get_label()
             for part in chain.degradable:
-                if label in (f"estimate of {part}", f"predicted RUL of {part}"):
+                if label in (f"estimate of {part}", f"predicted RUL of {part}") or label.startswith(f"estimate - truth of {part}"):
                     styles[part] = (line.get_color(), line.get_marker())
-    expected = ["k", "m", "b"] if name == "estimate" else ["k", "b"]  # m has no End of Life: no RUL to draw
+    expected = ["k", "b"] if name == "rul" else ["k", "m", "b"]  # m has no End of Life: no RUL to draw
     assert sorted(styles) == sorted(expected)
     assert len(set(styles.values())) == len(styles) and len({color for color, _ in styles.values()}) == len(styles)
     if name == "estimate":

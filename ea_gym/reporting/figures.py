@@ -40,7 +40,7 @@ from ea_gym.scenario import Scenario
 FIGURES: dict[str, tuple[str, str]] = {
     "time_frequency": ("time_frequency.png", "Time-frequency map of the I element's EA residual (paper Fig 9)"),
     "estimate": ("estimate.png", "Every component's estimate, truth, safe limits and End of Life (paper Fig 12)"),
-    "estimate_error": ("estimate_error.png", "Estimation error over time (paper Fig 13)"),
+    "estimate_error": ("estimate_error.png", "Estimation error of every component over time (paper Fig 13)"),
     "rul": ("rul.png", "Remaining Useful Life of every component: prediction, interval and truth with the alpha cone"),
     "signals": ("signals.png", "Measured and reference Energy Activity per element, detection statistic"),
 }
@@ -418,8 +418,11 @@ def _suspect_figure(run: ChainRun, chain: PHMChain, scenario: Scenario | None, r
 
 def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
                         results: dict | None = None) -> Path:
-    """Paper Fig 13: estimate minus truth over time (parameter unit, and % of nominal on the right)."""
+    """Paper Fig 13: estimate minus truth over time; every component's (:func:`_component_errors`) with the chain's
+    per-part health, else the suspect's (parameter unit, and % of nominal on the right)."""
     results = chain_results(run, chain, scenario) if results is None else results
+    if _joint(results):
+        return save_figure(_component_errors(chain, scenario, results), path)
     estimate = results["estimate"]
     parameter = estimate["parameter"]
     fig, ax = plt.subplots(figsize=(10, 4.5))
@@ -463,6 +466,39 @@ def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path
     ax.legend(loc="lower left", fontsize=8, framealpha=0.85)
     fig.tight_layout()
     return save_figure(fig, path)
+
+
+def _component_errors(chain: PHMChain, scenario: Scenario, results: dict) -> Any:
+    """Every component's estimate minus its truth over time, as % of its nominal value (the parts' units differ), each
+    in its own colour and marker; the axis fits the errors from ESTIMATION_START on, larger ones drawn at its edge."""
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    ax.axvspan(0, ESTIMATION_START, color="0.9", label=f"start-up (not scored, < {ESTIMATION_START:g} s)")
+    errors = {}
+    for name, series in results["components"].items():
+        t = np.asarray(series["t"], dtype=float)
+        value = np.array([np.nan if v is None else v for v in series["value"]], dtype=float)
+        truth = scenario.parameters_at(t)[:, scenario.model.parameter_names.index(name)]
+        errors[name] = (t, 100.0 * (value - truth) / float(scenario.model.nominal[name]))
+    scored = [np.abs(error[(t >= ESTIMATION_START) & np.isfinite(error)]) for t, error in errors.values()]
+    bound = max(1.3 * max((float(e.max()) for e in scored if e.size), default=0.0), 1e-9)
+    metrics = (results.get("metrics") or {}).get("parts") or {}
+    for name, (t, error) in errors.items():
+        color, marker = component_style(chain, name)
+        ax.plot(t, np.where(np.abs(error) <= bound, error, np.nan), "-", color=color, lw=0.7)
+        median = (metrics.get(name) or {}).get("estimation")
+        scored_text = f" (median {median['relative_to_nominal']['median']:.2%} of nominal)" if median else ""
+        plot_within(ax, t, error, -bound, bound, color=color, marker=marker, size=3.0, label=f"estimate - truth of {name}{scored_text}")
+    ax.axhline(0.0, color="k", lw=0.8)
+    _mark_events(ax, results, scenario)
+    ax.set_ylim(-bound, bound)
+    ax.set_xlim(0, max(float(t[-1]) for t, _ in errors.values()))
+    ax.set_xlabel("time the estimate describes (s)")
+    ax.set_ylabel("error (% of nominal)")
+    ax.set_title("Error of every component's estimate")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8, framealpha=0.85)
+    fig.tight_layout()
+    return fig
 
 
 def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
