@@ -17,10 +17,12 @@ from ea_gym.cli_args import (
     Subcommands,
     column_mapping,
     column_names,
+    columns_given,
     fraction_below_one,
     non_negative_float,
     positive_float,
     sample_rate_option,
+    seconds_within,
 )
 from ea_gym.interrupts import Terminated, interrupts_raised
 from ea_gym.models import SystemModel
@@ -30,6 +32,8 @@ if TYPE_CHECKING:
     from ea_gym.phm import Commissioning
     from ea_gym.scenario import Scenario
 
+#: the shortest healthy stretch a machine is commissioned on (s): two of the chain's steps
+COMMISSION_LEAST = 2.0
 #: the absolute part of how far --noise may sit from the record's estimate before the command warns: a noise-free record
 #: of a fast model reads ~0.1 % (ea_gym.measurements.noise_estimate)
 NOISE_MARGIN = 0.002
@@ -126,7 +130,7 @@ def _phm(args: argparse.Namespace) -> int:
     model = scenario.model
     model.check_degradable()
     if args.commission_seconds is not None:
-        _check_commission_seconds(args.commission_seconds, scenario.duration, "the scenario")
+        seconds_within("--commission-seconds", args.commission_seconds, COMMISSION_LEAST, scenario.duration, "the scenario")
 
     import numpy as np
 
@@ -144,7 +148,7 @@ def _phm(args: argparse.Namespace) -> int:
 
         # the scenario's sensor record (as simulate --csv writes it), its own draw of the noise
         record = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
-        commissioning = _commission(model, _first_seconds(record, args.commission_seconds), scenario.noise, scenario.load_noise)
+        commissioning = _commission(model, record.first(args.commission_seconds), scenario.noise, scenario.load_noise)
         chain.commission(commissioning.value)
         inputs = RunInputs(commissioning=commissioning,
                            commissioning_source=f"the first {args.commission_seconds:g} s of the scenario's sensor record")
@@ -152,20 +156,6 @@ def _phm(args: argparse.Namespace) -> int:
     results = write_phm_outputs(Path(args.out), run, chain, scenario, f"PHM chain on {args.scenario}", inputs=inputs)
     _print_outcome(results, args.out)
     return 0
-
-
-def _check_commission_seconds(seconds: float, duration: float, what: str) -> None:
-    """--commission-seconds within the record: at least two of the chain's 1 s steps, at most its duration (s)."""
-    if not 2.0 <= seconds <= duration:
-        raise ValueError(f"--commission-seconds: {seconds:g} s; expected at least 2 s and at most the duration of {what} ({duration:g} s)")
-
-
-def _first_seconds(record: Measurements, seconds: float) -> Measurements:
-    """The record's samples over its first ``seconds`` s."""
-    from ea_gym.measurements import Measurements
-
-    end = round(seconds * record.sample_rate) + 1
-    return Measurements(t=record.t[:end], load=record.load[:end], signals=record.signals[:end], rate=record.rate)
 
 
 def _commission(model: SystemModel, healthy: Measurements, noise: float, load_noise: float) -> Commissioning:
@@ -235,23 +225,14 @@ def _parameter_lines(model: SystemModel) -> list[str]:
 def _phm_measurements(args: argparse.Namespace) -> int:
     """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth; commissioned on
     a healthy record (``--commission``) or the record's first seconds (``--commission-seconds``) where asked."""
-    from ea_gym.measurements import noise_estimate, read_measurements, resampled
+    from ea_gym.measurements import noise_estimate, resampled
     from ea_gym.model_files import load_system
 
     if args.system is None:
         raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
     model = load_system(args.system)
     model.check_degradable()
-    columns, ignore = _column_mapping(args.columns), [name for names in args.ignore_columns for name in names]
-    recorded = read_measurements(args.measurements, model, columns=columns, ignore=ignore, sample_rate=args.sample_rate)
-    healthy = None
-    if args.commission is not None:  # the same columns, the same rate
-        healthy = read_measurements(args.commission, model, columns=columns, ignore=ignore, sample_rate=args.sample_rate)
-        if healthy.sample_rate != recorded.sample_rate:
-            raise ValueError(f"--commission: {args.commission} is sampled at {healthy.sample_rate:g} Hz, {args.measurements} at "
-                             f"{recorded.sample_rate:g} Hz; expected a healthy record at the record's rate")
-    if args.commission_seconds is not None:
-        _check_commission_seconds(args.commission_seconds, recorded.duration, args.measurements)
+    recorded, healthy = _records(args, model)
     import numpy as np  # the chain's heavy imports (numba, scipy, torch) once the files are valid: a refusal comes at once
 
     from ea_gym.phm import build_chain, chain_config, chain_sample_rate, check_duration, classifier_for, run_measurements
@@ -263,8 +244,8 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     check_duration(measurements, chain_config(rate, 0.0))  # before the calibration and the network
     if healthy is not None:
         healthy = healthy if rate == healthy.sample_rate else resampled(healthy, rate)
-        if healthy.duration < 2.0:
-            raise ValueError(f"--commission: {args.commission} lasts {healthy.duration:g} s; expected at least 2 s of a healthy machine")
+        if healthy.duration < COMMISSION_LEAST:
+            raise ValueError(f"--commission: {args.commission} lasts {healthy.duration:g} s; expected {COMMISSION_LEAST:g} s or more")
     # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
     step = round(recorded.sample_rate)  # the noise over 1 s steps, from the model's residuals
     estimate = noise_estimate(recorded, model, step)
@@ -274,7 +255,7 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     load_noise = 0.0 if args.load_noise is None else args.load_noise
     commissioning, source = None, None
     if healthy is not None or args.commission_seconds is not None:
-        fitted_on = healthy if healthy is not None else _first_seconds(measurements, args.commission_seconds)
+        fitted_on = healthy if healthy is not None else measurements.first(args.commission_seconds)
         commissioning = _commission(model, fitted_on, noise * density, load_noise * density)
         source = str(args.commission) if healthy is not None else f"the first {args.commission_seconds:g} s of {args.measurements}"
         # the machine's own values explain the record better than the catalogue's: what they leave is the sensors' noise
@@ -320,13 +301,22 @@ def _phm_measurements(args: argparse.Namespace) -> int:
     return 0
 
 
-def _column_mapping(pairs: list[tuple[str, str]]) -> dict[str, str]:
-    """``--columns``' NAME=COLUMN pairs as a mapping; a NAME given twice is refused."""
-    mapping: dict[str, str] = {}
-    for name, column in pairs:
-        if mapping.setdefault(name, column) != column:
-            raise ValueError(f"--columns: {name!r} is mapped twice ({mapping[name]!r} and {column!r}); expected one COLUMN per NAME")
-    return mapping
+def _records(args: argparse.Namespace, model: SystemModel) -> tuple[Measurements, Measurements | None]:
+    """The record (--measurements) and the healthy one (--commission, with the same columns and rate; None without),
+    read and checked, --commission-seconds within the record."""
+    from ea_gym.measurements import read_measurements
+
+    columns, ignore = columns_given(args.columns), [name for names in args.ignore_columns for name in names]
+    recorded = read_measurements(args.measurements, model, columns=columns, ignore=ignore, sample_rate=args.sample_rate)
+    healthy = None
+    if args.commission is not None:
+        healthy = read_measurements(args.commission, model, columns=columns, ignore=ignore, sample_rate=args.sample_rate)
+        if healthy.sample_rate != recorded.sample_rate:
+            raise ValueError(f"--commission: {args.commission} is sampled at {healthy.sample_rate:g} Hz, {args.measurements} at "
+                             f"{recorded.sample_rate:g} Hz; expected a healthy record at the record's rate")
+    if args.commission_seconds is not None:
+        seconds_within("--commission-seconds", args.commission_seconds, COMMISSION_LEAST, recorded.duration, args.measurements)
+    return recorded, healthy
 
 
 def _print_outcome(results: dict, out: str) -> None:
@@ -489,10 +479,7 @@ def _add_phm(commands: Subcommands) -> None:
               "record itself (with a scenario: of its sensor record, as simulate --csv writes it); the machine is taken "
               "as healthy over them. The chain still diagnoses the whole record, those seconds included"),
     )
-    phm.add_argument(
-        "--seed", type=int, default=None,
-        help="with --measurements: seed of the threshold calibration (default 0)",
-    )
+    phm.add_argument("--seed", type=int, default=None, help="with --measurements: seed of the threshold calibration (default 0)")
     phm.set_defaults(run=_phm)
 
 

@@ -116,6 +116,11 @@ class Measurements:
         """Time from the first sample to the last (s)."""
         return float(self.t[-1] - self.t[0])
 
+    def first(self, seconds: float) -> Measurements:
+        """The record's samples over its first ``seconds`` s (a healthy stretch to commission the machine on)."""
+        end = round(seconds * self.sample_rate) + 1
+        return Measurements(t=self.t[:end], load=self.load[:end], signals=self.signals[:end], rate=self.rate)
+
 
 def measurement_columns(model: SystemModel) -> tuple[str, ...]:
     """The columns a measurement file of ``model`` has: t, the load source, every storage element."""

@@ -298,6 +298,6 @@ def test_end_of_life_labels_never_overprint(setting, monkeypatch, tmp_path) -> N
         assert len(boxes) >= least and _overlaps(boxes) == 0
         frames = [ax.get_window_extent(figure.canvas.get_renderer()) for ax in figure.axes]
         assert all(any(frame.x0 <= box.x0 and box.x1 <= frame.x1 for frame in frames) for box in boxes)  # within an axes' width
-    monkeypatch.setattr(reporting.figures, "place_labels", lambda ax, labels: None)
+    monkeypatch.setattr(reporting.estimate_figure, "place_labels", lambda ax, labels: None)
     unplaced = figure_of(reporting.plot_estimate, monkeypatch, crowded, chain, scenario, tmp_path / "c.png", results=results)
     assert _overlaps(_label_boxes(unplaced)) > 0

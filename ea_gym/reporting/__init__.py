@@ -1,7 +1,8 @@
 """Results, figures and a markdown report of one scenario run through the PHM chain (paper 4.3-4.4).
 
 :mod:`~ea_gym.reporting.results`: ``results.json``'s content and metrics; :mod:`~ea_gym.reporting.figures`:
-the figures; :mod:`~ea_gym.reporting.report`: ``report.md`` and the output directory.
+the figures (the estimate's in :mod:`~ea_gym.reporting.estimate_figure`, what they share in
+:mod:`~ea_gym.reporting.drawing`); :mod:`~ea_gym.reporting.report`: ``report.md`` and the output directory.
 """
 
 from ea_gym.reporting.figures import (

@@ -281,24 +281,11 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
         eol_predictions: [{"t", "parameter", "eol", "limit", "rul", "rul_low", "rul_high"}] for every
             step with a finite End of Life (s) of a suspect the isolation was confident of; "parameter" is
             the one isolated at that step, "limit" "lower" or "upper".
-        run: scenario file or measurements file, sample rate (Hz), duration, steps, "noise" (the sensor noise level
-            the chain ran with) and "noise_source" (:class:`RunInputs`; "noise_estimate", the record's own, where one was
-            made), "load_noise" (the load measurement's) and "load_noise_source", estimate lag, frame (s), "rul_interval"
-            (the confidence of the RUL intervals).
-        commissioning: only where the chain ran from a commissioned machine: {"values", "std"} (name -> SI value and
-            its std, NaN ones None), "source" (what it was fitted on).
-        metrics: only when the scenario has a fault: "fault_parameters" (every faulty parameter), and the
-            single-fault keys of the faulty parameter the chain isolated (else the first): fault parameter, fault
-            onset (s), detection delay (s), isolation_correct, isolation_outcome (:func:`isolation_outcome`), and
-            when isolation is correct: "estimation" (errors of the estimate against the truth at its stamps from
-            ESTIMATION_START on, with the window used),
-            "eol_phases" (per profile segment whose true trend reaches a limit and has at least
-            MIN_PHASE_PREDICTIONS predictions made while the fault parameter was isolated: true EoL,
-            fraction of predictions heading for the right limit, EoL errors predicted - true, Saxena metrics
-            on the RUL with alpha = 0.2, lambda = 0.5), "eol_fault_phase" (the first of them) and
-            "predictions_without_true_eol" (finite predictions where the true trend is flat); "parts", every
-            faulty degradable part's metrics from its component series (:func:`part_metrics`), and
-            "degrading_set" (:func:`degrading_set_metrics`).
+        run: what was run with which settings (:func:`_run_record`).
+        commissioning: only where the chain ran from a commissioned machine (:func:`commissioning_results`).
+        metrics: only when the scenario has a fault: "fault_parameters" (every faulty parameter), the single-fault
+            keys of the faulty parameter the chain isolated, else the first (:func:`_fault_metrics`), "parts" (every
+            faulty part's, :func:`part_metrics`) and "degrading_set" (:func:`degrading_set_metrics`).
     """
     statuses = run.statuses
     if not statuses:
@@ -314,7 +301,6 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
     estimate = estimate_series(run, chain, isolated)
     predictions = _eol_predictions(run, chain)
     components = component_series(run, chain)
-    timing = chain.config.timing
     results: dict[str, Any] = {
         "detection_time": detection_time,
         "isolated_parameter": isolated_parameter,
@@ -326,20 +312,7 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
         "estimate": estimate,
         "components": components,
         "eol_predictions": predictions,
-        "run": {
-            **({"scenario": scenario.source} if scenario is not None else {"measurements": measurements}),
-            "sample_rate": float(timing.sample_rate),
-            "duration": float(run.t[-1]),
-            "steps": len(statuses),
-            "noise": float(timing.noise),
-            "noise_source": inputs.noise_source,
-            **({"noise_estimate": inputs.noise_estimate} if inputs.noise_estimate is not None else {}),
-            "load_noise": float(timing.load_noise),
-            "load_noise_source": inputs.load_noise_source,
-            "estimate_lag": float(chain.estimate_lag),
-            "frame": float(chain.config.isolation.frame),
-            "rul_interval": float(chain.config.extrapolation.confidence),
-        },
+        "run": _run_record(run, chain, scenario, measurements, inputs),
     }
     if inputs.commissioning is not None:
         results["commissioning"] = commissioning_results(inputs.commissioning, inputs.commissioning_source)
@@ -356,8 +329,31 @@ def chain_results(run: ChainRun, chain: PHMChain, scenario: Scenario | None, mea
     return json_ready(results)
 
 
+def _run_record(run: ChainRun, chain: PHMChain, scenario: Scenario | None, measurements: str | None, inputs: RunInputs) -> dict[str, Any]:
+    """``chain_results``' "run": the scenario or measurements file, sample rate (Hz), duration (s), steps, "noise" (the
+    sensor noise level the chain ran with) and "noise_source" (:class:`RunInputs`; "noise_estimate", the record's own,
+    where one was made), "load_noise" (the load measurement's) and "load_noise_source", estimate lag, frame (s),
+    "rul_interval" (the confidence of the RUL intervals)."""
+    timing = chain.config.timing
+    return {
+        **({"scenario": scenario.source} if scenario is not None else {"measurements": measurements}),
+        "sample_rate": float(timing.sample_rate),
+        "duration": float(run.t[-1]),
+        "steps": len(run.statuses),
+        "noise": float(timing.noise),
+        "noise_source": inputs.noise_source,
+        **({"noise_estimate": inputs.noise_estimate} if inputs.noise_estimate is not None else {}),
+        "load_noise": float(timing.load_noise),
+        "load_noise_source": inputs.load_noise_source,
+        "estimate_lag": float(chain.estimate_lag),
+        "frame": float(chain.config.isolation.frame),
+        "rul_interval": float(chain.config.extrapolation.confidence),
+    }
+
+
 def commissioning_results(commissioning: Commissioning, source: str | None) -> dict[str, Any]:
-    """The commissioned machine (N = 1) as ``results.json`` gives it: name -> value and std (SI), and its source."""
+    """The commissioned machine (N = 1) as ``results.json`` gives it: "values" and "std" (name -> SI, a NaN std None) and
+    "source" (what it was fitted on)."""
     return {
         "values": {name: float(v) for name, v in zip(commissioning.names, commissioning.value[0])},
         "std": {name: finite_or_none(v) for name, v in zip(commissioning.names, commissioning.std[0])},
@@ -504,7 +500,13 @@ def isolation_outcome(fault_parameter: str, detection_time: float | None, isolat
 
 def _fault_metrics(scenario: Scenario, parameter: str, detection_time: float | None, isolated_parameter: str | None,
                    estimate: dict[str, Any], predictions: list[dict[str, Any]]) -> dict[str, Any]:
-    """``chain_results``'s single-fault "metrics" of the scenario's fault in ``parameter``."""
+    """``chain_results``'s single-fault "metrics" of the scenario's fault in ``parameter``: fault parameter, fault onset (s),
+    detection delay (s), isolation_correct, isolation_outcome (:func:`isolation_outcome`), and when isolation is correct:
+    "estimation" (errors of the estimate against the truth at its stamps from ESTIMATION_START on, with the window used),
+    "eol_phases" (per profile segment whose true trend reaches a limit and has at least MIN_PHASE_PREDICTIONS
+    predictions made while the fault parameter was isolated: true EoL, fraction of predictions heading for the right
+    limit, EoL errors predicted - true, Saxena metrics on the RUL with alpha = 0.2, lambda = 0.5), "eol_fault_phase"
+    (the first of them) and "predictions_without_true_eol" (finite predictions where the true trend is flat)."""
     fault = fault_of(scenario, parameter)
     assert fault is not None  # parameter is one of the scenario's faulty parameters
     onset = fault_onset(scenario.model, fault)
