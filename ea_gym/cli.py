@@ -80,7 +80,8 @@ def _write_measurements(scenario: Scenario, path: Path) -> None:
 
     measurements = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
     write_measurements(path, scenario.model, measurements)
-    print(f"wrote {path} ({len(measurements.t)} samples at {scenario.sample_rate:g} Hz, sensor noise {scenario.noise:g})")
+    print(f"wrote {path} ({len(measurements.t)} samples at {scenario.sample_rate:g} Hz, sensor noise {scenario.noise:g}, "
+          f"load noise {scenario.load_noise:g})")
 
 
 def _write_energy(scenario: Scenario, out: Path, window: float) -> None:
@@ -394,7 +395,7 @@ def _add_simulate(commands: Subcommands) -> None:
     simulate.add_argument("--out", metavar="DIR", help="directory for energy.json and energy.png (created)")
     simulate.add_argument(
         "--csv", metavar="FILE",
-        help=("write what the plant's sensors record, with the scenario's sensor noise, as a measurement CSV for "
+        help=("write what the plant's sensors record, with the scenario's sensor and load noise, as a measurement CSV for "
               "'ea-gym phm --measurements' (columns t, the load source, every storage element's signal)"),
     )
     simulate.add_argument(
