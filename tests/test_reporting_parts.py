@@ -84,6 +84,11 @@ def with_parts(run: ChainRun, chain: PHMChain, scenario: Scenario, named: Any = 
     return dataclasses.replace(run, statuses=statuses)
 
 
+def without_parts(run: ChainRun) -> ChainRun:
+    """The run as a chain without its joint side filter gives it: no per-part health."""
+    return dataclasses.replace(run, statuses=[dataclasses.replace(s, parts=None) for s in run.statuses])
+
+
 def test_components_give_every_part_at_every_step_with_nulls_where_undefined(setting) -> None:
     run, chain, scenario = setting
     results = reporting.chain_results(with_parts(run, chain, scenario), chain, scenario)
@@ -175,7 +180,7 @@ def test_without_the_joint_side_filter_the_components_are_the_estimators_own(set
     """``HealthStatus.parts`` None: each part's estimate and std from ``estimates`` and ``estimation.variance``, the rest
     null; the degrading set is the isolated part; the set's metric is not scored."""
     run, chain, scenario = setting
-    assert all(s.parts is None for s in run.statuses)
+    run = without_parts(run)
     results = reporting.chain_results(run, chain, scenario)
     json.dumps(results, allow_nan=False)
     d = chain.degradable.index("b")
@@ -290,9 +295,10 @@ def test_end_of_life_labels_never_overprint(setting, monkeypatch, tmp_path) -> N
     run, chain, scenario = setting
     crowded = _same_eol(run, chain, scenario)
     results = reporting.chain_results(crowded, chain, scenario)
-    plain = reporting.chain_results(run, chain, scenario)  # without parts: the estimator's suspect alone, three fits
+    suspect = without_parts(run)  # the estimator's suspect alone, with its fits
+    plain = reporting.chain_results(suspect, chain, scenario)
     figures = [figure_of(reporting.plot_estimate, monkeypatch, crowded, chain, scenario, tmp_path / "a.png", results=results),
-               figure_of(reporting.plot_estimate, monkeypatch, run, chain, scenario, tmp_path / "b.png", results=plain)]
+               figure_of(reporting.plot_estimate, monkeypatch, suspect, chain, scenario, tmp_path / "b.png", results=plain)]
     for figure, least in zip(figures, (3, 1)):  # k's fit and End of Life at one place, b's; the suspect's fit
         boxes = _label_boxes(figure)
         assert len(boxes) >= least and _overlaps(boxes) == 0

@@ -18,7 +18,7 @@ from ea_gym.scenario import Scenario
 #: each component's colour and marker, in ``chain.degradable`` order (red is the safe limits', black the truth's, orange,
 #: purple and brown the extrapolations')
 COMPONENT_STYLES: tuple[tuple[str, str], ...] = (
-    ("tab:blue", "o"), ("tab:green", "s"), ("tab:cyan", "^"), ("tab:olive", "D"), ("tab:pink", "v"), ("tab:gray", "P"),
+    ("tab:blue", "o"), ("tab:green", "s"), ("tab:olive", "^"), ("tab:cyan", "D"), ("tab:pink", "v"), ("tab:gray", "P"),
     ("navy", "X"), ("darkgreen", "*"),
 )
 #: the backdrop of an End-of-Life label: the lines it crosses stay readable beneath it
