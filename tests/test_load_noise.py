@@ -100,7 +100,8 @@ def noisy_load_runs() -> dict[str, tuple[list, list]]:
     runs = {}
     for load_noise in (0.0, 0.01):
         records = [simulate("spring_mass_damper", s, 120.0, (Fault("k", onset, slope),), load_noise=load_noise, random_load=True) for s in seeds]
-        runs[f"ramp {load_noise}"] = (records, run_chain(chain_for("spring_mass_damper", 5, with_load_noise(chain_config(RATE, NOISE), load_noise)), records))
+        chain = chain_for("spring_mass_damper", 5, with_load_noise(chain_config(RATE, NOISE), load_noise))
+        runs[f"ramp {load_noise}"] = (records, run_chain(chain, records))
     healthy = [simulate("spring_mass_damper", s, 120.0, load_noise=0.01, random_load=True) for s in range(30, 35)]
     runs["healthy"] = (healthy, run_chain(chain_for("spring_mass_damper", 5, with_load_noise(chain_config(RATE, NOISE), 0.01)), healthy))
     return runs
