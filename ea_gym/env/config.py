@@ -60,9 +60,10 @@ class EnvConfig:
             ``SystemModel.random_load_scale`` (the nominal load unless the model gives a scale).
         phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
             (window, clock, sample rate and noise) is the environment's (``phm_config``). With one fault per
-            system it runs without the model-fit test (``PHMConfig.fit``: the v0 environments' episodes stay
-            as they were). None: the defaults; where every part ages, with the joint filter
-            (``estimator_kind="joint"``), which estimates every part at once.
+            system it runs without the model-fit test (``PHMConfig.fit``) and without a joint filter beside its
+            estimator (``JointFilterConfig.beside``): the v0 environments' episodes stay as they were. None: the
+            defaults; where every part ages, with the joint filter (``estimator_kind="joint"``), which estimates
+            every part at once.
         concurrent_wear: every wearing component has its own wear process (kind from its WearConfig;
             direction, arrival and rate drawn per part), so that faults overlap, instead of one fault per
             episode; the observation then gives every part's RUL and degrading probability (the v1
@@ -149,7 +150,9 @@ class EnvConfig:
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
         if self.concurrent_wear:  # the chain as on a real machine: every part estimated at once, the model's fit tested
             return dataclasses.replace(self.phm or PHMConfig(estimator_kind="joint"), timing=timing)
-        return dataclasses.replace(self.phm or PHMConfig(), timing=timing, fit=ModelFitConfig(enabled=False))
+        phm = self.phm or PHMConfig()
+        joint = dataclasses.replace(phm.joint, beside=False)  # no joint filter beside the estimator: v0's episodes stay as they were
+        return dataclasses.replace(phm, timing=timing, fit=ModelFitConfig(enabled=False), joint=joint)
 
 
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:
