@@ -38,7 +38,7 @@ def test_v1_ids_are_registered_with_the_v1_settings_and_v0_keeps_none():
     assert env_id() == ENV_IDS[0] and env_id("rlc_circuit") == ENV_IDS[1]
     for v0, v1 in zip(ENV_IDS, V1_ENV_IDS):
         assert gym.spec(v0).kwargs == {} and gym.spec(v1).kwargs == V1_SETTINGS
-    assert V1_SETTINGS == {"concurrent_wear": True, "background_wear": 2e-4, "tolerance": 0.125}
+    assert V1_SETTINGS == {"concurrent_wear": True, "background_wear": 2e-4, "tolerance": 0.125, "commission_seconds": 20.0}
     config = gym.make(V1).unwrapped.config
     assert config.concurrent_wear and config.phm_config.estimator_kind == "joint" and config.phm_config.fit.enabled
     assert gym.make(V1, horizon=30).unwrapped.config.horizon == 30  # keywords given to make still override
@@ -234,6 +234,69 @@ def test_the_world_settings_need_the_world_where_every_part_ages():
         gym.make(ENV_IDS[0], background_wear=1e-4)
     with pytest.raises(ValueError, match=r"tolerance 0.3 starts k anywhere in \[94, 106\], not inside its safe limits"):
         gym.make(V1, tolerance=0.3)
+    with pytest.raises(ValueError, match="commission_seconds needs concurrent_wear=True"):
+        EnvConfig(commission_seconds=20.0)
+    with pytest.raises(ValueError, match=r"commission_seconds must be 0 \(none\) or within \[1, "):
+        gym.make(V1, commission_seconds=0.5)
+
+
+def _reference(env):
+    core = env.unwrapped.core
+    return core.operation.reference_parameters[:, core._component_index], core.true_parameters[:, core._component_index]
+
+
+@pytest.mark.parametrize("obs_mode", ["phm", "sensors"])
+def test_each_machine_is_commissioned_at_its_reset_its_reference_its_own_parts(obs_mode):
+    """The fitted values are each machine's (within 2 % of the span of its drawn values, which lie up to 12.5 % off
+    nominal) in every mode; in "phm" the chain's reference is the same and the first observation shows them."""
+    n = 8
+    env = _vector(n, obs_mode=obs_mode)
+    observation, _ = env.reset(seed=2)
+    reference, truth = _reference(env)
+    span = np.array([MODEL.safe_limits[c][1] - MODEL.safe_limits[c][0] for c in COMPONENTS])
+    nominal = np.array([MODEL.nominal[c] for c in COMPONENTS])
+    assert np.all(np.abs(reference - truth) <= 0.02 * span)
+    assert np.median(np.abs(truth - nominal) / span) > 0.03  # so the catalogue values would not have done
+    core = env.unwrapped.core
+    if obs_mode == "phm":
+        np.testing.assert_array_equal(core.chain.reference_parameters, core.operation.reference_parameters)
+        low = np.array([MODEL.safe_limits[c][0] for c in COMPONENTS])
+        np.testing.assert_allclose(observation["parameter_estimate"], (reference - low) / span, rtol=1e-6)
+    # the commissioning ran before the episode: no wear yet, the loads' clocks 20 s on
+    np.testing.assert_array_equal(core.operation.elapsed, np.full(n, 20.0))
+    assert np.all(core.wear.arrival >= 0.0) and np.all(core._clock == 0.0)
+
+
+def test_a_commissioned_healthy_machine_raises_no_alarm_that_the_nominal_reference_does():
+    """Healthy machines off nominal (no fault in the run, background ageing off): commissioned, the chain sees no
+    fault; against the catalogue values it alarms on most."""
+    healthy = {"wear": {c: WearConfig(arrival=(1e5, 1e5)) for c in COMPONENTS}, "background_wear": 0.0, "horizon": 40}
+    alarms = {}
+    for seconds in (20.0, 0.0):
+        env = _vector(8, obs_mode="phm", commission_seconds=seconds, **healthy)
+        env.reset(seed=4)
+        chain = env.unwrapped.core.chain
+        for _ in range(40):
+            observation, *_ = env.step(np.zeros(8, dtype=int))
+        alarms[seconds] = chain.detector.state.alarm.mean()
+        if seconds:
+            assert np.all(observation["rul"] == 1000.0)  # no part named, no End of Life
+    assert alarms[20.0] == 0.0 and alarms[0.0] >= 0.5
+
+
+def test_a_replacement_commissions_the_machine_again():
+    env = gym.make(V1, obs_mode="phm", continue_after_failure=True)
+    env.reset(seed=5)
+    core = env.unwrapped.core
+    for _ in range(10):
+        env.step(0)
+    before = core.operation.reference_parameters.copy()
+    env.step(env.unwrapped.action_meanings.index("replace m"))
+    reference, truth = _reference(env)
+    m = COMPONENTS.index("m")
+    assert reference[0, m] != before[0, MODEL.parameter_names.index("m")]
+    assert abs(reference[0, m] - truth[0, m]) <= 0.02 * 2.0  # the new part's own value
+    np.testing.assert_array_equal(core.chain.reference_parameters, core.operation.reference_parameters)
 
 
 def test_v1_renders_every_part():

@@ -13,6 +13,7 @@ from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
 from ea_gym.phm import ChainTiming, ModelFitConfig, PHMConfig
+from ea_gym.phm.commissioning import COMMISSIONING_STEP
 
 OBS_MODES = ("phm", "sensors", "oracle")
 #: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
@@ -75,6 +76,11 @@ class EnvConfig:
         tolerance: with ``concurrent_wear``, each wearing part starts (at a reset and when replaced) from
             a value drawn uniformly within nominal +- this fraction of its safe span (the v1
             environments: 1/8, the middle half of the range for a nominal in its middle).
+        commission_seconds: with ``concurrent_wear``, each machine runs this long healthy at its reset and after
+            a replacement (before any wear: the degradation clock stands still), and its parts' own values are
+            fitted from that record (``ea_gym.phm.commission``): its reference model is simulated with them and
+            the chain compares the machine with itself, not with the catalogue (``PHMChain.commission``).
+            0: none, the reference at nominal (the v1 environments: 20 s; at least ``COMMISSIONING_STEP``).
     """
 
     step_seconds: float = 1.0
@@ -93,6 +99,7 @@ class EnvConfig:
     concurrent_wear: bool = False
     background_wear: float = 0.0
     tolerance: float = 0.0
+    commission_seconds: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("step_seconds", "sample_rate", "corrective_rate", "rul_max"):
@@ -132,12 +139,18 @@ class EnvConfig:
         """The settings of the world where every part ages: a bool and numbers >= 0, used only in that world."""
         if not isinstance(self.concurrent_wear, bool):
             raise TypeError(f"concurrent_wear must be a bool, got {self.concurrent_wear!r}")
-        for name in ("background_wear", "tolerance"):
+        for name in ("background_wear", "tolerance", "commission_seconds"):
             value = getattr(self, name)
             if not (_is_number(value) and value >= 0):
                 raise ValueError(f"{name} must be a number >= 0, got {value!r}")
             if value and not self.concurrent_wear:
                 raise ValueError(f"{name} needs concurrent_wear=True (the world where every part ages), got {name}={value!r}")
+        seconds = self.commission_seconds
+        if seconds and not (COMMISSIONING_STEP <= seconds and seconds * self.sample_rate <= MAX_SAMPLES):
+            raise ValueError(
+                f"commission_seconds must be 0 (none) or within [{COMMISSIONING_STEP:g}, {MAX_SAMPLES / self.sample_rate:g}] s "
+                f"(at {self.sample_rate:g} Hz), got {seconds!r}"
+            )
 
     @property
     def window(self) -> float:

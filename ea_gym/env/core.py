@@ -27,7 +27,7 @@ from ea_gym.env.infos import StepInfo, cost_items
 from ea_gym.env.observations import Observation, Observer, OracleTruth
 from ea_gym.env.operation import Degradation, Operation, PartsDegradation
 from ea_gym.models import SystemModel
-from ea_gym.phm import HealthStatus, PHMChain, PHMConfig, classifier_for, thresholds_for
+from ea_gym.phm import HealthStatus, PHMChain, PHMConfig, classifier_for, commission, thresholds_for
 from ea_gym.threads import single_threaded_blas
 
 
@@ -84,6 +84,7 @@ class MaintenanceCore:
         else:
             self.degradation = Degradation(model, wear, self.components, n_systems)
         self.chain, self.monitor = _supervision(model, config, wear, n_systems, classifier, calibration_seed)
+        self._joint_config = config.phm_config.joint  # what commissioning fits with
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
@@ -169,6 +170,8 @@ class MaintenanceCore:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask if systems is not None else None)
+        if self._commission(rngs, mask):  # before its first step the chain knows the machine it was commissioned with
+            return self.observe({**self.observer.idle, "estimates": self.operation.reference_parameters[:, self._component_index]})
         return self.observe(self.observer.idle)
 
     def reset_info(self) -> StepInfo:
@@ -282,8 +285,31 @@ class MaintenanceCore:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask)
+        self._commission(rngs, mask)
         for i, d in zip(systems, components):
             events[i].append(Replacement(self.components[d], downtime))
+
+    def _commission(self, rngs: Sequence[np.random.Generator], systems: np.ndarray) -> bool:
+        """Commission the machines in the boolean mask ``systems`` (``EnvConfig.commission_seconds``; none where it
+        is 0): each runs that long healthy under its own load, its parts' values are fitted from the measured record
+        (``ea_gym.phm.commission``, in every obs_mode: the same draws whatever is observed), and they become its
+        reference model's and, in the "phm" mode, the chain's healthy machine. Returns whether any was."""
+        seconds = self.config.commission_seconds
+        if seconds == 0 or not systems.any():
+            return False
+        rows = np.flatnonzero(systems)
+        window = self.operation.commissioning(rows, self._theta[rows], seconds, rngs)
+        fitted = commission(
+            self.model, window.measured, window.load, window.load_rate, self.config.sample_rate, self.config.noise, config=self._joint_config
+        )
+        if self.chain is not None:
+            self.chain.commission(fitted.value, systems, fitted.std)
+            reference = self.chain.reference_parameters[rows]
+        else:
+            reference = np.tile(self.nominal, (len(rows), 1))
+            reference[:, self._component_index] = fitted.value
+        self.operation.set_reference(rows, reference)
+        return True
 
     def operate(self, rngs: Sequence[np.random.Generator]) -> dict[str, np.ndarray]:
         """Simulate one window of plant and reference, measure, and run the chain or the monitor."""
@@ -301,20 +327,15 @@ class MaintenanceCore:
         eai = component_activity_index(ea, self._rco_index, self.rco)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
 
-    def _part_outputs(self, status: HealthStatus) -> dict[str, np.ndarray]:
-        """Every part's degrading probability (N, n), estimate (N, n, SI) and RUL [point, low, high] (N, n, 3) s, from
-        the joint estimate: each part's value and drift carried to its limits."""
-        estimation, chain = status.estimation, self.chain
-        assert chain is not None  # the phm mode's outputs
-        if estimation.degrading is None:
-            raise ValueError("every part ages (concurrent_wear=True): the chain needs an estimator of every part at once (estimator_kind 'joint')")
-        rul = np.empty((self.n, len(self.components), 3))
-        every = np.ones(self.n, dtype=bool)
-        for d in range(len(self.components)):
-            prognosis = chain.prognosis.update(estimation, np.full(self.n, d + 1), every, status.t)
-            rul[:, d, 0], rul[:, d, 1], rul[:, d, 2] = prognosis.eol, prognosis.eol_low, prognosis.eol_high
-        rul -= status.t[:, None, None]
-        return {"degrading": estimation.degrading, "estimates": estimation.value, "rul": rul}
+    @staticmethod
+    def _part_outputs(status: HealthStatus) -> dict[str, np.ndarray]:
+        """Every part's degrading probability (N, n), joint estimate (N, n, SI) and RUL [point, low, high] (N, n, 3) s
+        (``PartHealth``: inf but for the parts judged degrading)."""
+        if status.parts is None:
+            raise ValueError(
+                "every part ages (concurrent_wear=True): the chain needs its joint filter (estimator_kind 'joint' or JointFilterConfig.beside)"
+            )
+        return {"degrading": status.parts.degrading, "estimates": status.parts.value, "rul": status.parts.rul}
 
     def observe(self, outputs: dict[str, np.ndarray]) -> Observation:
         """Observation arrays of the step's ``outputs``; systems that are down show idle outputs."""

@@ -41,8 +41,11 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
     `ea_gym.env`) every part ages at once, as on a real machine: each part starts from its own value
     within a tolerance of nominal, ages slowly in the background from the start, and has its own fault
     (its `WearConfig`'s process, with a direction, arrival and rate drawn per part), so that faults
-    overlap. The chain runs the joint filter (every part's estimate, variance and drift at once) with the
-    model-fit test, and the observation gives every part's degrading probability and RUL.
+    overlap. Each machine is commissioned at its reset (and after a replacement): it runs healthy for a while,
+    its parts' own values are fitted from the record, and the reference model and the chain take them, so the
+    chain compares the machine with itself, not with the catalogue. The chain runs the joint filter (every
+    part's estimate, variance and drift at once) with the model-fit test, and the observation gives every
+    part's degrading probability and RUL.
 
     ## Action Space
 
@@ -97,7 +100,9 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
     All components at nominal, the machine at rest, a new random load (random-phase multisine around
     the nominal load), and a fault drawn: which component, when it arrives, its direction and rate.
     v1: every wearing part drawn within `tolerance` x its safe span of nominal (uniform; default 1/8),
-    then its own fault (direction, arrival, rate), from the system's generator, part by part.
+    then its own fault (direction, arrival, rate), from the system's generator, part by part; then
+    `commission_seconds` of healthy operation (the load's clock moves on, the wear's does not) from which the
+    machine is commissioned. The first observation's `parameter_estimate` is the commissioned values.
 
     ## Episode End
 
@@ -135,7 +140,9 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
       nominal to its limit per s: 5000 s, ten default horizons, to its limit by background ageing alone,
       and at most 2e-4 of its safe span per s, below the joint filter's degrading rate, 1.5e-3: ageing,
       not a fault), `tolerance=0.125` (the parts' starting spread, fraction of the safe span either side
-      of nominal).
+      of nominal), `commission_seconds=20.0` (the healthy record each machine is commissioned from at a reset
+      and after a replacement: its parts' values to a median 0.1-0.5 % of their spans on the spring-mass-damper;
+      0: none, the reference at nominal).
 
     `info["true_rul"]` is the true RUL (s) of the fault's mean trend (inf before it arrives); in v1 an
     array (n,), each part's mean trend (its background ageing, plus its fault once arrived) to its limit.
@@ -144,7 +151,8 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
 
     - v0: first version.
     - v1: every part ages at once (background ageing, a fault per part, overlapping), parts start within
-      their tolerances, replaced parts too; the chain runs the joint filter and the model-fit test; the
+      their tolerances, replaced parts too, and each machine is commissioned; the chain runs the joint filter
+      and the model-fit test; the
       observation's `degrading` (n,) replaces `diagnosis`, `rul` is (n, 3) per part, `info["true_rul"]` (n,).
     """
 

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ea_gym.bondgraph.simulation import MeasuredSimulation
+from ea_gym.bondgraph.simulation import MeasuredSimulation, simulate_measured
 from ea_gym.degradation import PartsWear, Wear, WearConfig
 from ea_gym.energy import window_samples
 from ea_gym.loads import multisine_rotations, rotated_multisine_into
@@ -58,10 +58,13 @@ class Loads:
             self.phase[i] = rng.uniform(0.0, 2.0 * math.pi, LOAD_COMPONENTS)
         self.rotation[mask] = multisine_rotations(self.frequency[mask], self.h)
 
-    def signal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each system's load and its time derivative at its times ``t`` (N, T)."""
+    def signal(self, t: np.ndarray, systems: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each system's load and its time derivative at its times ``t`` (N, T); of the ``systems`` (K,) alone
+        where given, ``t`` then (K, T)."""
         load, rate = np.empty(t.shape), np.empty(t.shape)
         phase, rotation, mean, amplitude = self.phase, self.rotation, self.mean, self.amplitude
+        if systems is not None:
+            phase, rotation, mean, amplitude = phase[systems], rotation[systems], mean[systems], amplitude[systems]
 
         def load_rows(start: int, stop: int) -> None:
             rows = slice(start, stop)
@@ -156,6 +159,24 @@ class Operation:
         """Each system's load and its derivative over one window from its time ``start`` (N,), on the
         sample grid, (N, samples + 1)."""
         return self.loads.signal(start[:, None] + self.window_grid)
+
+    def commissioning(self, systems: np.ndarray, parameters: np.ndarray, seconds: float, rngs: Sequence[np.random.Generator]) -> Window:
+        """``seconds`` of healthy operation of the plants ``systems`` (K,) under their own ``parameters`` (K, P), measured
+        (system i drawing its noise from ``rngs[i]``): the record a machine is commissioned from before its episode.
+        Their loads' clocks move on by ``seconds``; each reference then starts from its plant's state (the
+        commissioned reference describes the machine from there). ``Window``'s arrays have K rows, ``expected`` the
+        plants' own noise-free signals."""
+        systems = np.asarray(systems, dtype=np.intp)
+        samples = window_samples(seconds, self.h)
+        u, du = self.loads.signal(self.elapsed[systems, None] + np.arange(samples + 1) * self.h, systems)
+        loads, rates = self.model.source_inputs(u, du)
+        signals, last = simulate_measured(
+            self.model.state_space, self.h, loads, rates, parameters, self.plant[systems], self.sensors.gain(parameters)
+        )
+        self.plant[systems] = last
+        self.reference[systems] = last
+        self.elapsed[systems] += samples * self.h
+        return Window(measured=self.sensor_noise(signals, [rngs[i] for i in systems.tolist()]), expected=signals, load=u, load_rate=du)
 
     def run(self, parameters: np.ndarray, rngs: Sequence[np.random.Generator]) -> Window:
         """Simulate one window of every plant under its true ``parameters`` (N, P) and of the reference, and measure."""
