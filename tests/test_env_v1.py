@@ -311,3 +311,17 @@ def test_v1_renders_every_part():
         env.step(0)
     image = env.render()
     assert image.ndim == 3 and image.shape[2] == 3 and image.std() > 0
+
+
+def test_the_sb3_vec_env_takes_the_v1_settings():
+    from ea_gym.env.sb3 import MaintenanceVecEnv
+
+    vec = MaintenanceVecEnv(2, obs_mode="oracle", **V1_SETTINGS)
+    vec.seed(3)
+    observation = vec.reset()
+    assert observation["rul"].shape == (2, 3, 3) and observation["degrading"].shape == (2, 3)
+    _, _, _, infos = vec.step(np.zeros(2, dtype=int))
+    single = gym.make(V1, obs_mode="oracle")
+    single.reset(seed=4)
+    _, _, _, _, info = single.step(0)
+    np.testing.assert_array_equal(infos[1]["true_rul"], info["true_rul"])  # system 1 of the batch is the env seeded 3 + 1
