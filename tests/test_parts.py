@@ -37,6 +37,7 @@ from ea_gym.phm import (
     ExtrapolationConfig,
     HealthStatus,
     JointFilter,
+    JointFilterConfig,
     ParameterEstimates,
     PartHealth,
     chain_config,
@@ -205,3 +206,8 @@ def test_no_part_is_named_and_no_end_of_life_given_while_the_model_does_not_fit(
     assert max(p.degrading.max() for p in parts) > 0.9  # the filter alone would name parts
     assert not any(p.named.any() for p in parts) and all(np.all(np.isinf(p.eol)) for p in parts)
 
+
+
+def test_end_of_life_names_its_choice() -> None:
+    with pytest.raises(ValueError, match="JointFilterConfig.end_of_life"):
+        JointFilterConfig(end_of_life="all")

@@ -12,7 +12,7 @@ import numpy as np
 from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
-from ea_gym.phm import ChainTiming, ModelFitConfig, PHMConfig
+from ea_gym.phm import ChainTiming, JointFilterConfig, ModelFitConfig, PHMConfig
 from ea_gym.phm.commissioning import COMMISSIONING_STEP
 
 OBS_MODES = ("phm", "sensors", "oracle")
@@ -64,7 +64,7 @@ class EnvConfig:
             system it runs without the model-fit test (``PHMConfig.fit``) and without a joint filter beside its
             estimator (``JointFilterConfig.beside``): the v0 environments' episodes stay as they were. None: the
             defaults; where every part ages, with the joint filter (``estimator_kind="joint"``), which estimates
-            every part at once.
+            every part at once, and every part's End of Life (``JointFilterConfig.end_of_life="every"``).
         concurrent_wear: every wearing component has its own wear process (kind from its WearConfig;
             direction, arrival and rate drawn per part), so that faults overlap, instead of one fault per
             episode; the observation then gives every part's RUL and degrading probability (the v1
@@ -162,7 +162,9 @@ class EnvConfig:
         """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
         if self.concurrent_wear:  # the chain as on a real machine: every part estimated at once, the model's fit tested
-            return dataclasses.replace(self.phm or PHMConfig(estimator_kind="joint"), timing=timing)
+            # every part's End of Life: the world's truth gives each part its own (JointFilterConfig.end_of_life)
+            phm = self.phm or PHMConfig(estimator_kind="joint", joint=JointFilterConfig(end_of_life="every"))
+            return dataclasses.replace(phm, timing=timing)
         phm = self.phm or PHMConfig()
         joint = dataclasses.replace(phm.joint, beside=False)  # no joint filter beside the estimator: v0's episodes stay as they were
         return dataclasses.replace(phm, timing=timing, fit=ModelFitConfig(enabled=False), joint=joint)

@@ -52,9 +52,10 @@ class PartHealth:
         named: the part is judged degrading: its ``degrading`` reached ``JointFilterConfig.name_probability`` and has
             not fallen below ``release_probability`` since; False everywhere while the model is not known to fit
             (``HealthStatus.model_fit``), (N, D).
-        eol, eol_low, eol_high: each named part's End of Life and its interval (s): its value and drift carried
-            to the safe limit it heads for (``ea_gym.phm.prognosis.drift_end_of_life``); inf where the part is
-            not named or does not reach a limit within ``ExtrapolationConfig.horizon``, (N, D).
+        eol, eol_low, eol_high: each named part's End of Life (every part's with ``JointFilterConfig.end_of_life``
+            "every") and its interval (s): its value and drift carried to the safe limit it heads for
+            (``ea_gym.phm.prognosis.drift_end_of_life``); inf where the part is not named (with "every": while the
+            model is not known to fit) or does not reach a limit within ``ExtrapolationConfig.horizon``, (N, D).
     """
 
     names: tuple[str, ...]
@@ -322,13 +323,14 @@ class PHMChain:
     def _part_health(self, prognosis: DriftPrognosis, estimates: ParameterEstimates, withheld: np.ndarray | None, t: np.ndarray) -> PartHealth:
         """Every part's health from the joint filter's ``estimates``: named from when its probability of degrading reaches
         ``JointFilterConfig.name_probability`` until it falls below ``release_probability``, unless the model-fit
-        test withholds the diagnosis (``withheld`` (N,), None: the test is off), and each named part's End of Life
-        (``prognosis``)."""
+        test withholds the diagnosis (``withheld`` (N,), None: the test is off), and the End of Life (``prognosis``) of each
+        named part, or of every part (``JointFilterConfig.end_of_life``) but where the diagnosis is withheld."""
         assert estimates.degrading is not None  # the joint filter always gives it
         config = self.config.joint
         self._named = np.where(self._named, estimates.degrading >= config.release_probability, estimates.degrading >= config.name_probability)
         named = self._named if withheld is None else self._named & ~withheld[:, None]
-        eol, eol_low, eol_high = prognosis.every_part(estimates, named)
+        given = named if config.end_of_life == "named" else np.broadcast_to(True if withheld is None else ~withheld[:, None], named.shape)
+        eol, eol_low, eol_high = prognosis.every_part(estimates, given)
         std = np.sqrt(np.where(estimates.variance >= 0, estimates.variance, np.nan))  # negative: a filter the data threw off
         return PartHealth(
             names=self.degradable, t=t.copy(), value=estimates.value, std=std, degrading=estimates.degrading,
