@@ -85,7 +85,13 @@ def _predicted_covariance(M: np.ndarray, B: np.ndarray, drift_time: float, Q: np
         for p in range(d):
             P[i, nx + p] = G[i, nx + p] + drift_time * G[i, nx + d + p] + Q[i, nx + p]
             P[i, nx + d + p] = G[i, nx + d + p] + Q[i, nx + d + p]
-    for i in range(n):
+    _mirror_upper(P)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _mirror_upper(P: np.ndarray) -> None:
+    """P's lower triangle from its upper one."""
+    for i in range(P.shape[0]):
         for j in range(i):
             P[i, j] = P[j, i]
 
@@ -107,6 +113,22 @@ def _measurement_rows(z: np.ndarray, parameter: np.ndarray, inertia: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _innovation_cholesky(variance: np.ndarray, parameter: np.ndarray, diagonal: np.ndarray, slope: np.ndarray, PHt: np.ndarray,
+                         S: np.ndarray) -> None:
+    """The Cholesky factor L of S = H P H^T + R into S's lower triangle, from P H^T (``PHt``) and the measurement
+    rows (``_measurement_rows``'s); ``variance``: R's diagonal."""
+    nx = S.shape[0]
+    for i in range(nx):
+        for k in range(i + 1):
+            value = diagonal[i] * PHt[i, k] + (slope[i] * PHt[nx + parameter[i], k] if parameter[i] >= 0 else 0.0)
+            if k == i:
+                value += variance[i]
+            for c in range(k):
+                value -= S[i, c] * S[k, c]
+            S[i, k] = np.sqrt(value) if i == k else value / S[k, k]
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _update(
     z: np.ndarray, variance: np.ndarray, parameter: np.ndarray, inertia: np.ndarray, lo: np.ndarray, hi: np.ndarray, x: np.ndarray,
     P: np.ndarray, y: np.ndarray, S: np.ndarray, diagonal: np.ndarray, slope: np.ndarray, PHt: np.ndarray, W: np.ndarray,
@@ -122,14 +144,7 @@ def _update(
     for a in range(n):  # P H^T: column i is diagonal[i] P[:, i] (+ slope[i] P[:, its parameter])
         for i in range(nx):
             PHt[a, i] = diagonal[i] * P[a, i] + (slope[i] * P[a, nx + parameter[i]] if parameter[i] >= 0 else 0.0)
-    for i in range(nx):  # S = H P H^T + R and its Cholesky factor, the lower triangles
-        for k in range(i + 1):
-            value = diagonal[i] * PHt[i, k] + (slope[i] * PHt[nx + parameter[i], k] if parameter[i] >= 0 else 0.0)
-            if k == i:
-                value += variance[i]
-            for c in range(k):
-                value -= S[i, c] * S[k, c]
-            S[i, k] = np.sqrt(value) if i == k else value / S[k, k]
+    _innovation_cholesky(variance, parameter, diagonal, slope, PHt, S)
     nis = 0.0
     for i in range(nx):  # u = L^-1 y
         value = y[i]
