@@ -3,11 +3,14 @@ energy variables, every degradable parameter and its drift, compiled system by s
 
 The arithmetic is the reference's with the filter's structure written out instead of its dense products
 (n = nx + 2 D: 8 on the spring-mass-damper): the transition F is the identity but for the energy
-variables' rows [M_x | dM x] and theta's d / d drift, so F P F^T costs nx (nx + D) n twice instead of n^3;
-each measurement row reads its own energy variable and at most one parameter (an I element's flow
-p / I), so P H^T, S and K P H^T are sums over those; S (nx x nx, symmetric positive definite) is inverted
-through its Cholesky factor. No array is allocated per sample. The kernel meets the reference to ~1e-10
-relative. A step of 100 samples costs some tens of microseconds per system; the systems' rows are
+variables' rows [M_x | dM x] and theta's d / d drift, so F P F^T is F_E P (nx (nx + D) n) and a few
+additions by blocks; each measurement row reads its own energy variable and at most one parameter (an
+I element's flow p / I), so P H^T and S are sums over those; S (nx x nx, symmetric positive definite) is
+factored, S = L L^T, and the update written with W = P H^T L^-T: x += W L^-1 y, P -= W W^T, each sample's
+normalized innovation squared |L^-1 y|^2 summed per system (the model-fit test's statistic). Covariances
+are computed in their upper triangles and mirrored, so P stays symmetric to the bit. No array is
+allocated per sample. The kernel meets the reference (dense products, symmetrised, S solved with) to
+~1e-10 relative. A step of 100 samples costs some tens of microseconds per system; the systems' rows are
 independent, and the kernel releases the GIL, so the caller may split them between threads.
 
 Reference (the specification in plain numpy): ``ea_gym._kernels.reference.joint``.
@@ -46,32 +49,51 @@ def _transition_rows(M0: np.ndarray, dM: np.ndarray, anchor: np.ndarray, x: np.n
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _predicted_covariance(M: np.ndarray, B: np.ndarray, drift_time: float, Q: np.ndarray, P: np.ndarray, FP: np.ndarray) -> None:
+def _predicted_covariance(M: np.ndarray, B: np.ndarray, drift_time: float, Q: np.ndarray, P: np.ndarray, G: np.ndarray) -> None:
     """P = F P F^T + Q in place, F the identity but for the energy variables' rows [M_x | B | 0] and theta's
-    d / d drift = ``drift_time``; FP its workspace."""
+    d / d drift = ``drift_time``. By blocks (E the energy variables, T theta, R the drift): G = F_E P (G its
+    workspace, (nx, n)), P_EE = G_E M_x^T + G_T B^T, P_ET = G_T + drift_time G_R, P_ER = G_R, P_TT = P_TT +
+    drift_time (P_TR + P_RT) + drift_time^2 P_RR, P_TR = P_TR + drift_time P_RR, P_RR unchanged; the upper triangle
+    computed, the lower its mirror (P and Q symmetric)."""
     nx, d, n = M.shape[0], B.shape[1], P.shape[0]
-    for j in range(n):  # F P
-        for i in range(nx):
+    for i in range(nx):  # G = F_E P
+        for j in range(n):
             value = 0.0
             for c in range(nx):
                 value += M[i, c] * P[c, j]
             for p in range(d):
                 value += B[i, p] * P[nx + p, j]
-            FP[i, j] = value
-        for p in range(d):
-            FP[nx + p, j] = P[nx + p, j] + drift_time * P[nx + d + p, j]
-            FP[nx + d + p, j] = P[nx + d + p, j]
-    for i in range(n):  # (F P) F^T, the same structure from the right
-        for j in range(nx):
+            G[i, j] = value
+    for p in range(d):  # the parameters' blocks, from P's own entries (the energy rows are not read)
+        t, r = nx + p, nx + d + p
+        for q in range(p, d):
+            u, v = nx + q, nx + d + q
+            P[t, u] += drift_time * (P[t, v] + P[r, u]) + drift_time * drift_time * P[r, v] + Q[t, u]
+        for q in range(d):
+            v = nx + d + q
+            P[t, v] += drift_time * P[r, v] + Q[t, v]
+        for q in range(p, d):
+            P[r, nx + d + q] += Q[r, nx + d + q]
+    for i in range(nx):  # the energy variables' rows, from G
+        for j in range(i, nx):
             value = 0.0
             for c in range(nx):
-                value += FP[i, c] * M[j, c]
+                value += G[i, c] * M[j, c]
             for p in range(d):
-                value += FP[i, nx + p] * B[j, p]
+                value += G[i, nx + p] * B[j, p]
             P[i, j] = value + Q[i, j]
         for p in range(d):
-            P[i, nx + p] = FP[i, nx + p] + drift_time * FP[i, nx + d + p] + Q[i, nx + p]
-            P[i, nx + d + p] = FP[i, nx + d + p] + Q[i, nx + d + p]
+            P[i, nx + p] = G[i, nx + p] + drift_time * G[i, nx + d + p] + Q[i, nx + p]
+            P[i, nx + d + p] = G[i, nx + d + p] + Q[i, nx + d + p]
+    _mirror_upper(P)
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
+def _mirror_upper(P: np.ndarray) -> None:
+    """P's lower triangle from its upper one."""
+    for i in range(P.shape[0]):
+        for j in range(i):
+            P[i, j] = P[j, i]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
@@ -91,73 +113,71 @@ def _measurement_rows(z: np.ndarray, parameter: np.ndarray, inertia: np.ndarray,
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
-def _symmetric_inverse(S: np.ndarray, L: np.ndarray, inverse: np.ndarray) -> None:
-    """S^-1 of the symmetric positive definite S through its Cholesky factor: S = L L^T, S^-1 = L^-T L^-1, into
-    L's upper triangle (its diagonal included); ``inverse`` holds L^-1 on the way."""
+def _innovation_cholesky(variance: np.ndarray, parameter: np.ndarray, diagonal: np.ndarray, slope: np.ndarray, PHt: np.ndarray,
+                         S: np.ndarray) -> None:
+    """The Cholesky factor L of S = H P H^T + R into S's lower triangle, from P H^T (``PHt``) and the measurement
+    rows (``_measurement_rows``'s); ``variance``: R's diagonal."""
     nx = S.shape[0]
     for i in range(nx):
         for k in range(i + 1):
-            value = 0.5 * (S[i, k] + S[k, i])
+            value = diagonal[i] * PHt[i, k] + (slope[i] * PHt[nx + parameter[i], k] if parameter[i] >= 0 else 0.0)
+            if k == i:
+                value += variance[i]
             for c in range(k):
-                value -= L[i, c] * L[k, c]
-            L[i, k] = np.sqrt(value) if i == k else value / L[k, k]
-    for k in range(nx):  # L^-1, column by column
-        for i in range(nx):
-            value = 1.0 if i == k else 0.0
-            for c in range(k, i):
-                value -= L[i, c] * inverse[c, k]
-            inverse[i, k] = value / L[i, i] if i >= k else 0.0
-    for i in range(nx):
-        for k in range(i, nx):
-            value = 0.0
-            for c in range(k, nx):
-                value += inverse[c, i] * inverse[c, k]
-            L[i, k] = value
+                value -= S[i, c] * S[k, c]
+            S[i, k] = np.sqrt(value) if i == k else value / S[k, k]
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _update(
     z: np.ndarray, variance: np.ndarray, parameter: np.ndarray, inertia: np.ndarray, lo: np.ndarray, hi: np.ndarray, x: np.ndarray,
-    P: np.ndarray, y: np.ndarray, S: np.ndarray, diagonal: np.ndarray, slope: np.ndarray, PHt: np.ndarray, K: np.ndarray,
-    L: np.ndarray, inverse: np.ndarray,
-) -> None:
-    """One system's update from one sample's measurements ``z`` (nx,) (x, P in place; y and S, the innovation and
-    its covariance, written); the measurement rows as ``_measurement_rows``'s; PHt, K, L and inverse workspaces."""
+    P: np.ndarray, y: np.ndarray, S: np.ndarray, diagonal: np.ndarray, slope: np.ndarray, PHt: np.ndarray, W: np.ndarray,
+    u: np.ndarray,
+) -> float:
+    """One system's update from one sample's measurements ``z`` (nx,), x and P in place; returns the sample's
+    normalized innovation squared y^T S^-1 y. With S = L L^T (Cholesky), u = L^-1 y and W = P H^T L^-T: the
+    gain K = W L^-1, so x += W u, P -= K S K^T = W W^T (symmetric by construction) and y^T S^-1 y = u^T u.
+    The measurement rows as ``_measurement_rows``'s; y, S (its Cholesky factor in the lower triangle), PHt,
+    W and u workspaces."""
     nx, d, n = z.shape[0], lo.shape[0], x.shape[0]
     _measurement_rows(z, parameter, inertia, x, diagonal, slope, y)
     for a in range(n):  # P H^T: column i is diagonal[i] P[:, i] (+ slope[i] P[:, its parameter])
         for i in range(nx):
             PHt[a, i] = diagonal[i] * P[a, i] + (slope[i] * P[a, nx + parameter[i]] if parameter[i] >= 0 else 0.0)
-    for i in range(nx):
-        for k in range(nx):
-            S[i, k] = diagonal[i] * PHt[i, k] + (slope[i] * PHt[nx + parameter[i], k] if parameter[i] >= 0 else 0.0)
-        S[i, i] += variance[i]
-    _symmetric_inverse(S, L, inverse)
-    for a in range(n):  # K = P H^T S^-1, and x += K y
+    _innovation_cholesky(variance, parameter, diagonal, slope, PHt, S)
+    nis = 0.0
+    for i in range(nx):  # u = L^-1 y
+        value = y[i]
+        for c in range(i):
+            value -= S[i, c] * u[c]
+        u[i] = value / S[i, i]
+        nis += u[i] * u[i]
+    for a in range(n):  # W = P H^T L^-T, row by row; x += W u
         correction = 0.0
-        for k in range(nx):
+        for i in range(nx):
+            value = PHt[a, i]
+            for c in range(i):
+                value -= W[a, c] * S[i, c]
+            W[a, i] = value / S[i, i]
+            correction += W[a, i] * u[i]
+        x[a] += correction
+    for a in range(n):  # P -= W W^T
+        for b in range(a, n):
             value = 0.0
             for i in range(nx):
-                value += PHt[a, i] * (L[i, k] if i <= k else L[k, i])
-            K[a, k] = value
-            correction += value * y[k]
-        x[a] += correction
-    for a in range(n):  # P - K S K^T = P - K (P H^T)^T, symmetrised
-        for b in range(a, n):
-            ka, kb = 0.0, 0.0
-            for i in range(nx):
-                ka += K[a, i] * PHt[b, i]
-                kb += K[b, i] * PHt[a, i]
-            P[a, b] = P[b, a] = 0.5 * ((P[a, b] - ka) + (P[b, a] - kb))
+                value += W[a, i] * W[b, i]
+            P[a, b] -= value
+            P[b, a] = P[a, b]
     for p in range(d):
         x[nx + p] = min(max(x[nx + p], lo[p]), hi[p])
+    return nis
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def joint_samples(
     M0: np.ndarray, dM: np.ndarray, anchor: np.ndarray, w: np.ndarray, drift_time: np.ndarray, Q: np.ndarray, measured: np.ndarray,
     variance: np.ndarray, momenta: np.ndarray, inertia: np.ndarray, lo: np.ndarray, hi: np.ndarray, x: np.ndarray, P: np.ndarray,
-    innovation: np.ndarray, innovation_covariance: np.ndarray,
+    nis: np.ndarray,
 ) -> None:
     """Every system's filter over samples 1..L of one step; the arguments as the reference's
     (``ea_gym._kernels.reference.joint.joint_samples``)."""
@@ -170,19 +190,18 @@ def joint_samples(
             parameter[momenta[k, 0]] = momenta[k, 1]
         else:
             nominal[momenta[k, 0]] = inertia[k]
-    M, xw, B, states, FP = np.empty((nx, columns)), np.empty(columns), np.empty((nx, d)), np.empty(nx), np.empty((n, n))
-    diagonal, slope, PHt, K = np.empty(nx), np.zeros(nx), np.empty((n, nx)), np.empty((n, nx))
-    L, inverse = np.empty((nx, nx)), np.empty((nx, nx))
+    M, xw, B, states, G = np.empty((nx, columns)), np.empty(columns), np.empty((nx, d)), np.empty(nx), np.empty((nx, n))
+    diagonal, slope, PHt, W = np.empty(nx), np.zeros(nx), np.empty((n, nx)), np.empty((n, nx))
+    y, S, u = np.empty(nx), np.empty((nx, nx)), np.empty(nx)
     for m in range(M0.shape[0]):
+        total = 0.0
         for k in range(w.shape[1]):
             # predict: x = M(theta) [x; w], theta += drift_time drift, P = F P F^T + Q
             _transition_rows(M0[m], dM[m], anchor[m], x[m], w[m, k], M, xw, B, states)
-            _predicted_covariance(M, B, drift_time[m], Q[m], P[m], FP)
+            _predicted_covariance(M, B, drift_time[m], Q[m], P[m], G)
             for i in range(nx):
                 x[m, i] = states[i]
             for p in range(d):
                 x[m, nx + p] += drift_time[m] * x[m, nx + d + p]
-            _update(
-                measured[m, :, k + 1], variance[m], parameter, nominal, lo, hi, x[m], P[m], innovation[m, k], innovation_covariance[m, k],
-                diagonal, slope, PHt, K, L, inverse,
-            )
+            total += _update(measured[m, :, k + 1], variance[m], parameter, nominal, lo, hi, x[m], P[m], y, S, diagonal, slope, PHt, W, u)
+        nis[m] = total

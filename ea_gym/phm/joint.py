@@ -10,8 +10,8 @@ step, dM_j the central difference, so the Jacobian's parameter columns dM_j [x; 
 measurement model is ``Sensors(model)``'s: an I element's flow p / I (nonlinear where I is estimated,
 its H row carries -p / I^2), a C element's displacement q. Each sample's update is the filterpy form
 (y = z - h(x), S = H P H^T + R, K = P H^T S^-1; compiled, ``ea_gym._kernels.joint``, beside its numpy
-reference); its innovations y and their covariances S are kept for the step (``innovation``,
-``innovation_covariance``: a model-fit test reads them).
+reference); each sample's normalized innovation squared y^T S^-1 y is summed per system over the step
+(``nis``: a model-fit test reads it).
 
 Why an EKF and not an unscented filter (ProgPy's ``UnscentedKalmanFilter``, the comparison's anchor): the
 model is linear in the states and smooth in the parameters, the parameters move by a fraction of a per
@@ -118,8 +118,8 @@ class JointFilter:
     Attributes:
         x: each system's state [energy variables, theta (SI), drift (SI/s)], (N, nx + 2 D).
         P: its covariance, (N, nx + 2 D, nx + 2 D).
-        innovation: the last step's innovations (measured minus predicted signal), (N, L, nx).
-        innovation_covariance: their covariances S, (N, L, nx, nx).
+        nis: the last step's normalized innovations squared y^T S^-1 y (y measured minus predicted signal, S its
+            predicted covariance) summed over its samples and signals, (N,).
     """
 
     def __init__(
@@ -163,8 +163,8 @@ class JointFilter:
         size = self.nx + 2 * d
         self.x = np.zeros((n_systems, size))
         self.P = np.zeros((n_systems, size, size))
-        self.innovation = np.zeros((n_systems, 0, self.nx))
-        self.innovation_covariance = np.zeros((n_systems, 0, self.nx, self.nx))
+        self.nis = np.zeros(n_systems)
+        self._samples = 0  # the last step's samples
         self._innovations: StepInnovations | None = None
         self.started = np.zeros(n_systems, dtype=bool)
         # each parameter's CUSUM of its normalized corrections, upward and downward, and how far the corrections of
@@ -253,15 +253,14 @@ class JointFilter:
             load_variance = self.load_noise**2 * np.mean(load**2, axis=1) / (1.0 + self.load_noise**2)  # (N,)
             held = M0[:, :, self.nx]  # Gamma's column of the load's value
             Q[:, : self.nx, : self.nx] += load_variance[:, None, None] * held[:, :, None] * held[:, None, :]
-        self.innovation = np.empty((self.n, samples, self.nx))
-        self.innovation_covariance = np.empty((self.n, samples, self.nx, self.nx))
+        self._samples = samples
         w = np.ascontiguousarray(w)
 
         def filter_rows(start: int, stop: int) -> None:  # the systems' filters are independent: rows split between threads
             rows = slice(start, stop)
             joint_samples(
                 M0[rows], dM[rows], anchor[rows], w[rows], drift_time[rows], Q[rows], measured[rows], variance[rows], self.momenta,
-                self.inertia, self.lo, self.hi, self.x[rows], self.P[rows], self.innovation[rows], self.innovation_covariance[rows],
+                self.inertia, self.lo, self.hi, self.x[rows], self.P[rows], self.nis[rows],
             )
 
         over_rows(filter_rows, self.n)
@@ -401,9 +400,7 @@ class JointFilter:
         """The last step's normalized innovations squared, y^T S^-1 y summed over its samples, and their
         terms (samples x signals) (``ea_gym.phm.fit.InnovationSource``)."""
         if self._innovations is None:  # once a step: the filter's own onset watch reads them, then the model-fit test
-            y, S = self.innovation, self.innovation_covariance
-            nis = np.einsum("nli,nli->n", y, np.linalg.solve(S, y[..., None])[..., 0]) if y.shape[1] else np.zeros(self.n)
-            self._innovations = StepInnovations(nis=nis, dof=np.full(self.n, float(y.shape[1] * y.shape[2])))
+            self._innovations = StepInnovations(nis=self.nis.copy(), dof=np.full(self.n, float(self._samples * self.nx)))
         return self._innovations
 
     @property
