@@ -56,11 +56,14 @@ from ea_gym.energy import window_samples
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import estimation_errors
 from ea_gym.models import SystemModel
-from ea_gym.phm import ESTIMATORS, ChainTiming, PHMChain, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm import ESTIMATORS, ChainTiming, JointFilterConfig, PHMChain, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm.joint import degrading_probability
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
 from experiments.common import parse_with_smoke
+from experiments.studies.part_tracks import PartTrack, alpha_hits, interval_hits, prediction_mask
+from experiments.studies.records import NOISE, Record, system_model
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
@@ -72,8 +75,6 @@ DEFAULT_DRIFT_NOISE = 3e-5  # used without tuning (--smoke); the grid's choice a
 SMOKE = {"scenarios": ["mass_m_ramp"], "seeds": [0], "ukf_rate": 20.0, "drift_noise": DEFAULT_DRIFT_NOISE}
 STEP = 1.0  # s of signal per chain update and between predictions
 SETTLE = 10.0  # s after onset from which estimate errors count
-ALPHA = 0.2
-PREDICTION_SPAN = (0.5, 0.9)  # of the way from onset to End of Life
 Z95 = 1.959963984540054
 
 
@@ -150,25 +151,6 @@ def fault_window(scenario: Scenario) -> tuple[float, float]:
             limit = low if v1 < low else high
             return float(onset if onset is not None else t0), t0 + (limit - v0) / (v1 - v0) * (t1 - t0)
     raise ValueError(f"{scenario.source}: fault.profile: {scenario.fault.parameter} never crosses its safe limits {low, high}")
-
-
-def prediction_mask(t: np.ndarray, onset: float, eol: float) -> np.ndarray:
-    """Predictions evaluated by alpha-lambda and coverage: from 50 to 90 % of the way from onset to End of Life."""
-    first, last = (onset + f * (eol - onset) for f in PREDICTION_SPAN)
-    return (t >= first - 1e-9) & (t <= last + 1e-9)
-
-
-def alpha_hits(rul: np.ndarray, rul_true: np.ndarray, alpha: float = ALPHA) -> np.ndarray:
-    """Whether each point RUL (s) lies within +-alpha of the true RUL (bounds inclusive; inf misses).
-
-    ``ea_gym.metrics.alpha_lambda`` judges the one prediction at a single lambda and refuses infinite
-    predictions; issue 17 counts every prediction of a span, a missing one (inf) as a miss."""
-    return np.isfinite(rul) & (np.abs(rul - rul_true) <= alpha * rul_true)
-
-
-def interval_hits(low: np.ndarray, high: np.ndarray, rul_true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(covers, bounded): whether each RUL interval (s) contains the true RUL, and whether it is bounded."""
-    return (low <= rul_true) & (rul_true <= high), np.isfinite(low) & np.isfinite(high)
 
 
 def drift_rul(value: float, drift: float, covariance: np.ndarray, limits: tuple[float, float], z: float = Z95) -> tuple[float, float, float]:
@@ -363,6 +345,45 @@ def run_ukf(system: SystemModel, signals: Signals, noise: float, estimated: Sequ
         covariances.append(ukf.filter.P.copy())
     ends = t[signals.step :: signals.step][: len(signals.windows)]
     return FilterRecord(ends, np.array(means), np.array(covariances), tuple(model.states))
+
+
+def recorded_signals(record: Record) -> Signals:
+    """An independent record's noisy samples as the chain's 1 s steps see them (step k: samples k step .. (k + 1) step,
+    its first the previous step's last), the load's rate its central difference (``numpy.gradient``: the chain's stream
+    takes it so from the recorded load), the truth the machine's parameters."""
+    measurements = record.measurements
+    step = window_samples(STEP, measurements.sample_period)
+    signals = measurements.signals.T
+    windows = np.stack([signals[:, start : start + step + 1] for start in range(0, signals.shape[1] - step, step)])
+    load_rate = np.gradient(measurements.load, measurements.sample_period)
+    truth = record.machine.values(measurements.t)
+    return Signals(measurements.t, record.clean.T, windows, record.clean.T, measurements.load, load_rate, truth, step)
+
+
+def ukf_track(record: Record, settings: FilterSettings) -> PartTrack:
+    """ProgPy's UKF with every part of the spring-mass-damper and its drift as states, on an independent record, read as the
+    chain's per-part outputs: named where P(|drift| > ``JointFilterConfig.degrading_rate`` x the safe span per s) >= 0.5 (the
+    joint filter's rule), End of Life the drift's crossing (``drift_rul``: Fieller's interval) where named."""
+    system = system_model(record.machine.system)
+    parts = tuple(system.safe_limits)
+    filtered = run_ukf(system, recorded_signals(record), NOISE, parts, settings)
+    slots = [filtered.states.index(name) for name in parts]
+    value, drift = filtered.mean[:, slots], filtered.mean[:, [s + 1 for s in slots]]
+    variance = filtered.covariance[:, slots, slots]
+    drift_variance = filtered.covariance[:, [s + 1 for s in slots], [s + 1 for s in slots]]
+    limits = np.array([system.safe_limits[name] for name in parts])
+    degrading = degrading_probability(drift, drift_variance, JointFilterConfig().degrading_rate * (limits[:, 1] - limits[:, 0]))
+    named = degrading >= 0.5
+    ends = np.full((3,) + value.shape, np.inf)
+    for s, j in zip(*np.nonzero(named)):
+        pair = filtered.covariance[s][np.ix_([slots[j], slots[j] + 1], [slots[j], slots[j] + 1])]
+        ends[:, s, j] = filtered.t[s] + np.array(drift_rul(value[s, j], drift[s, j], pair, tuple(limits[j])))
+    steps = len(filtered.t)
+    return PartTrack(
+        t=filtered.t, parts=parts, value=value, std=np.sqrt(variance), degrading=degrading, named=named, eol=ends[0], eol_low=ends[1],
+        eol_high=ends[2], alarm=named.any(axis=1), isolated=np.full(steps, -1), fits=np.ones(steps, dtype=bool),
+        misfit=np.zeros(steps, dtype=bool), machine_eol=ends[0].min(axis=1),
+    )
 
 
 def isolate_by_drift(record: FilterRecord, system: SystemModel) -> list[str]:
