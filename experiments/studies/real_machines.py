@@ -258,6 +258,9 @@ def criteria(results: dict[str, dict[str, Any]], agreement: float) -> list[dict[
         for case, cell in result["misfit"].items():
             rows.append(row(f"d. misfit ({case}): does not fit; nothing named, isolated or predicted", system, f"{cell['passed']} of {cell['runs']}",
                             "all", cell["passed"] == cell["runs"]))
+    quiet = [q for result in results.values() for q in result["load_noise"]["noisy"]["quiet"]]
+    rows.append(row("c. 1 % load noise: nothing raised before onset, every system's records", "all", f"{np.mean(quiet):.2f} of {len(quiet)}",
+                    f">= {SHARE}", bool(np.mean(quiet) >= SHARE)))
     return rows
 
 
