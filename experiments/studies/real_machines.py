@@ -279,7 +279,7 @@ def plot_parts(track: PartTrack, machine: Machine, path: Path) -> Path:
     position = (track.value - limits[:, 0]) / (limits[:, 1] - limits[:, 0])
     truth = (machine.values(track.t)[:, [system_model(machine.system).parameter_names.index(p) for p in track.parts]] - limits[:, 0]) / (
         limits[:, 1] - limits[:, 0])
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 7), sharex=True)
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(12, 7), sharex=True)
     colors, markers = plt.rcParams["axes.prop_cycle"].by_key()["color"], "os^DvP*X"
     every = max(1, len(track.t) // 20)
     for j, part in enumerate(track.parts):
@@ -299,7 +299,7 @@ def plot_parts(track: PartTrack, machine: Machine, path: Path) -> Path:
     bottom.set_xlabel("t (s)")
     for ax in (top, bottom):
         ax.grid(alpha=0.3)
-        ax.legend(loc="upper left", fontsize=8, ncol=2)
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
     fig.tight_layout()
     return save_figure(fig, path)
 
