@@ -17,16 +17,23 @@ from ea_gym.cli_args import (
     Subcommands,
     column_mapping,
     column_names,
+    columns_given,
+    fraction_below_one,
     non_negative_float,
     positive_float,
     sample_rate_option,
+    seconds_within,
 )
 from ea_gym.interrupts import Terminated, interrupts_raised
 from ea_gym.models import SystemModel
 
 if TYPE_CHECKING:
+    from ea_gym.measurements import Measurements
+    from ea_gym.phm import Commissioning
     from ea_gym.scenario import Scenario
 
+#: the shortest healthy stretch a machine is commissioned on (s): two of the chain's steps
+COMMISSION_LEAST = 2.0
 #: the absolute part of how far --noise may sit from the record's estimate before the command warns: a noise-free record
 #: of a fast model reads ~0.1 % (ea_gym.measurements.noise_estimate)
 NOISE_MARGIN = 0.002
@@ -73,7 +80,8 @@ def _write_measurements(scenario: Scenario, path: Path) -> None:
 
     measurements = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
     write_measurements(path, scenario.model, measurements)
-    print(f"wrote {path} ({len(measurements.t)} samples at {scenario.sample_rate:g} Hz, sensor noise {scenario.noise:g})")
+    print(f"wrote {path} ({len(measurements.t)} samples at {scenario.sample_rate:g} Hz, sensor noise {scenario.noise:g}, "
+          f"load noise {scenario.load_noise:g})")
 
 
 def _write_energy(scenario: Scenario, out: Path, window: float) -> None:
@@ -105,32 +113,61 @@ def _phm(args: argparse.Namespace) -> int:
 
     if (args.scenario is None) == (args.measurements is None):
         raise ValueError("give a SCENARIO to simulate or --measurements DATA.csv (with --system), one of them")
+    if args.commission is not None and args.commission_seconds is not None:
+        raise ValueError("--commission: give a healthy record or --commission-seconds S (the record's first seconds), not both")
     check_output_directory(args.out)
     if args.measurements is not None:
         return _phm_measurements(args)
     given = [option for option, value in (("--noise", args.noise), ("--seed", args.seed), ("--columns", args.columns),
-                                          ("--ignore-columns", args.ignore_columns), ("--sample-rate", args.sample_rate)) if value]
+                                          ("--ignore-columns", args.ignore_columns), ("--sample-rate", args.sample_rate),
+                                          ("--load-noise", args.load_noise), ("--commission", args.commission))
+             if value is not None and value != []]
     if given:
-        raise ValueError(f"{given[0]} goes with --measurements; a scenario names its sensor noise, seed, signals and sample rate")
+        raise ValueError(f"{given[0]} goes with --measurements; a scenario names its sensor and load noise, seed, signals and sample rate"
+                         + (" (commission from its first seconds with --commission-seconds S)" if given[0] == "--commission" else ""))
     from ea_gym.scenario import load_scenario
 
     scenario = load_scenario(args.scenario, args.system)  # before the chain's heavy imports: a bad file is refused at once
     model = scenario.model
     model.check_degradable()
+    if args.commission_seconds is not None:
+        seconds_within("--commission-seconds", args.commission_seconds, COMMISSION_LEAST, scenario.duration, "the scenario")
 
     import numpy as np
 
     from ea_gym.phm import build_chain, chain_config, classifier_for, run_scenario
     from ea_gym.reporting import write_phm_outputs
+    from ea_gym.reporting.results import RunInputs
 
     rng = np.random.default_rng(scenario.sensor_seed)
-    config = chain_config(scenario.sample_rate, scenario.noise)
+    config = chain_config(scenario.sample_rate, scenario.noise, scenario.load_noise)
     classifier = classifier_for(model, args.classifier)
     chain = build_chain(model, config, classifier, rng)
+    inputs = RunInputs()
+    if args.commission_seconds is not None:
+        from ea_gym.phm import scenario_measurements
+
+        # the scenario's sensor record (as simulate --csv writes it), its own draw of the noise
+        record = scenario_measurements(scenario, np.random.default_rng(scenario.sensor_seed))
+        commissioning = _commission(model, record.first(args.commission_seconds), scenario.noise, scenario.load_noise)
+        chain.commission(commissioning.value)
+        inputs = RunInputs(commissioning=commissioning,
+                           commissioning_source=f"the first {args.commission_seconds:g} s of the scenario's sensor record")
     run = run_scenario(scenario, chain, rng, progress=_progress)
-    results = write_phm_outputs(Path(args.out), run, chain, scenario, f"PHM chain on {args.scenario}")
+    results = write_phm_outputs(Path(args.out), run, chain, scenario, f"PHM chain on {args.scenario}", inputs=inputs)
     _print_outcome(results, args.out)
     return 0
+
+
+def _commission(model: SystemModel, healthy: Measurements, noise: float, load_noise: float) -> Commissioning:
+    """The healthy machine's own values fitted on the record ``healthy`` (at the chain's sample rate) with its noise levels
+    (``ea_gym.phm.commission``); ``PHMChain.commission`` makes them the chain's healthy machine."""
+    import numpy as np
+
+    from ea_gym.phm import commission
+
+    load_rate = np.gradient(healthy.load, healthy.sample_period)  # the recorded load's derivative, as the stream takes it
+    return commission(model, healthy.signals.T[None], healthy.load[None], load_rate[None], healthy.sample_rate, noise, load_noise)
 
 
 def _models(args: argparse.Namespace) -> int:
@@ -187,73 +224,110 @@ def _parameter_lines(model: SystemModel) -> list[str]:
 
 
 def _phm_measurements(args: argparse.Namespace) -> int:
-    """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth."""
-    from ea_gym.measurements import noise_estimate, read_measurements, resampled
+    """The chain on a measurement CSV of ``--system``: thresholds calibrated at ``--noise``, no truth; commissioned on
+    a healthy record (``--commission``) or the record's first seconds (``--commission-seconds``) where asked."""
+    from ea_gym.measurements import noise_estimate, resampled
     from ea_gym.model_files import load_system
 
     if args.system is None:
         raise ValueError("--measurements needs --system MODEL, the model whose elements the columns are named after")
     model = load_system(args.system)
     model.check_degradable()
-    recorded = read_measurements(
-        args.measurements, model, columns=_column_mapping(args.columns), ignore=[name for names in args.ignore_columns for name in names],
-        sample_rate=args.sample_rate,
-    )
+    recorded, healthy = _records(args, model)
     import numpy as np  # the chain's heavy imports (numba, scipy, torch) once the files are valid: a refusal comes at once
 
     from ea_gym.phm import build_chain, chain_config, chain_sample_rate, check_duration, classifier_for, run_measurements
     from ea_gym.reporting import write_phm_outputs
+    from ea_gym.reporting.results import RunInputs
 
     rate = chain_sample_rate(recorded.sample_rate)
     measurements = recorded if rate == recorded.sample_rate else resampled(recorded, rate)
     check_duration(measurements, chain_config(rate, 0.0))  # before the calibration and the network
+    if healthy is not None:
+        healthy = healthy if rate == healthy.sample_rate else resampled(healthy, rate)
+        if healthy.duration < COMMISSION_LEAST:
+            raise ValueError(f"--commission: {args.commission} lasts {healthy.duration:g} s; expected {COMMISSION_LEAST:g} s or more")
     # thresholds calibrated below the record's noise raise alarms on a healthy machine: without --noise, the record's own
-    estimate = noise_estimate(recorded, model, round(recorded.sample_rate))  # over 1 s steps, from the model's residuals
+    step = round(recorded.sample_rate)  # the noise over 1 s steps, from the model's residuals
+    estimate = noise_estimate(recorded, model, step)
     noise = estimate if args.noise is None else args.noise
     # resampled, the record's white noise keeps its density over its own band: white noise of that density at the chain's rate
-    chain_noise = noise if rate == recorded.sample_rate else noise * math.sqrt(rate / recorded.sample_rate)
+    density = math.sqrt(rate / recorded.sample_rate)
+    load_noise = 0.0 if args.load_noise is None else args.load_noise
+    commissioning, source = None, None
+    if healthy is not None or args.commission_seconds is not None:
+        fitted_on = healthy if healthy is not None else measurements.first(args.commission_seconds)
+        commissioning = _commission(model, fitted_on, noise * density, load_noise * density)
+        source = str(args.commission) if healthy is not None else f"the first {args.commission_seconds:g} s of {args.measurements}"
+        # the machine's own values explain the record better than the catalogue's: what they leave is the sensors' noise
+        estimate = noise_estimate(recorded, model, step, parameters=dict(zip(commissioning.names, commissioning.value[0].tolist())))
+        noise = estimate if args.noise is None else args.noise
     rng = np.random.default_rng(0 if args.seed is None else args.seed)
-    chain = build_chain(model, chain_config(rate, chain_noise), classifier_for(model, args.classifier), rng)
+    chain = build_chain(model, chain_config(rate, noise * density, load_noise * density), classifier_for(model, args.classifier), rng)
+    if commissioning is not None:
+        chain.commission(commissioning.value)
     run = run_measurements(chain, measurements, progress=_progress)
-    source = "the record's estimate" if args.noise is None else "--noise"
-    noise_line = (f"The record's sensor noise looks like {estimate:.2%} of the signals' RMS "
-                  f"(ea_gym.measurements.noise_estimate); the detection thresholds are calibrated for {noise:.2%} ({source}).")
-    lines = [f"Times are seconds since the record's first sample (t = {recorded.t[0]:g} s in {args.measurements}).", noise_line]
+    noise_source = "the record's estimate" if args.noise is None else "--noise"
+    load_source = "assumed exact" if args.load_noise is None else "--load-noise"
+    lines = [
+        f"Times are seconds since the record's first sample (t = {recorded.t[0]:g} s in {args.measurements}).",
+        (f"The record's sensor noise looks like {estimate:.2%} of the signals' RMS (ea_gym.measurements.noise_estimate"
+         + (", from the commissioned machine's residuals" if commissioning is not None else "")
+         + f"); the detection thresholds are calibrated for {noise:.2%} ({noise_source})."),
+        (f"The load is read with noise of {load_noise:.2%} of its RMS ({load_source}"
+         + ("; give --load-noise FRACTION where its sensor is noisy: the model's residuals cannot tell it from the sensors' noise)."
+            if args.load_noise is None else ").")),
+    ]
+    if commissioning is not None:
+        lines.append(f"The chain's healthy machine is commissioned on {source}: "
+                     + ", ".join(f"{name} = {value:.4g}" for name, value in zip(commissioning.names, commissioning.value[0])) + ".")
     if measurements is not recorded:
         lines[0] = (f"Times are seconds since t = {measurements.t[0]:g} s in {args.measurements}, the first sample the resampling "
                     "filter sees the record on both sides of.")
         lines.append(f"The record's {recorded.sample_rate:g} Hz are resampled to {rate:g} Hz, a whole number of samples per "
-                     f"EA sub-window (ea_gym.measurements.resampled); at that rate the noise reads {chain_noise:.2%}.")
+                     f"EA sub-window (ea_gym.measurements.resampled); at that rate the noise reads {noise * density:.2%}.")
     print("\n".join(lines[1:]))
     # the estimate holds to a few % on a record the model explains (noise_estimate): a factor 1.5 either way contradicts --noise
     if estimate > 1.5 * noise + NOISE_MARGIN:
         print(f"ea-gym phm: warning: --noise {noise:g} is likely too low for this record: alarms may be false", file=sys.stderr)
     elif noise > 1.5 * estimate + NOISE_MARGIN:
         print(f"ea-gym phm: warning: --noise {noise:g} is likely too high for this record: faults may be detected late", file=sys.stderr)
+    inputs = RunInputs(noise_source="estimated" if args.noise is None else "--noise", noise_estimate=estimate,
+                       load_noise_source=load_source, commissioning=commissioning, commissioning_source=source)
     results = write_phm_outputs(
         Path(args.out), run, chain, None, f"PHM chain on {args.measurements} ({model.name})", sections=lines,
-        measurements=str(args.measurements),
+        measurements=str(args.measurements), inputs=inputs,
     )
     _print_outcome(results, args.out)
     return 0
 
 
-def _column_mapping(pairs: list[tuple[str, str]]) -> dict[str, str]:
-    """``--columns``' NAME=COLUMN pairs as a mapping; a NAME given twice is refused."""
-    mapping: dict[str, str] = {}
-    for name, column in pairs:
-        if mapping.setdefault(name, column) != column:
-            raise ValueError(f"--columns: {name!r} is mapped twice ({mapping[name]!r} and {column!r}); expected one COLUMN per NAME")
-    return mapping
+def _records(args: argparse.Namespace, model: SystemModel) -> tuple[Measurements, Measurements | None]:
+    """The record (--measurements) and the healthy one (--commission, with the same columns and rate; None without),
+    read and checked, --commission-seconds within the record."""
+    from ea_gym.measurements import read_measurements
+
+    columns, ignore = columns_given(args.columns), [name for names in args.ignore_columns for name in names]
+    recorded = read_measurements(args.measurements, model, columns=columns, ignore=ignore, sample_rate=args.sample_rate)
+    healthy = None
+    if args.commission is not None:
+        healthy = read_measurements(args.commission, model, columns=columns, ignore=ignore, sample_rate=args.sample_rate)
+        if healthy.sample_rate != recorded.sample_rate:
+            raise ValueError(f"--commission: {args.commission} is sampled at {healthy.sample_rate:g} Hz, {args.measurements} at "
+                             f"{recorded.sample_rate:g} Hz; expected a healthy record at the record's rate")
+    if args.commission_seconds is not None:
+        seconds_within("--commission-seconds", args.commission_seconds, COMMISSION_LEAST, recorded.duration, args.measurements)
+    return recorded, healthy
 
 
 def _print_outcome(results: dict, out: str) -> None:
     from ea_gym.reporting import fit_text
-    from ea_gym.reporting.report import isolation_text
+    from ea_gym.reporting.report import degrading_text, isolation_text
 
     detection = results["detection_time"]
     outcome = "no fault detected" if detection is None else f"detection at {detection:g} s, isolated parameter {isolation_text(results)}"
     print(fit_text(results))
+    print(degrading_text(results))
     print(f"{outcome}; wrote {out}/results.json and report.md")
 
 
@@ -321,7 +395,7 @@ def _add_simulate(commands: Subcommands) -> None:
     simulate.add_argument("--out", metavar="DIR", help="directory for energy.json and energy.png (created)")
     simulate.add_argument(
         "--csv", metavar="FILE",
-        help=("write what the plant's sensors record, with the scenario's sensor noise, as a measurement CSV for "
+        help=("write what the plant's sensors record, with the scenario's sensor and load noise, as a measurement CSV for "
               "'ea-gym phm --measurements' (columns t, the load source, every storage element's signal)"),
     )
     simulate.add_argument(
@@ -339,10 +413,14 @@ def _add_phm(commands: Subcommands) -> None:
             "Run the Energy-Activity PHM chain step by step on a simulated scenario (its plant, the fault-free "
             "reference model, measured with the scenario's sensor noise) or on a machine's recorded measurements "
             "(--system MODEL --measurements DATA.csv: the reference model driven by the recorded load). Writes "
-            "DIR/results.json (detection time, isolated parameter, class probabilities, the parameter estimate "
-            "over time, End-of-Life predictions and, for a scenario with a fault, metrics against the truth), the "
-            "figures (time-frequency map, estimate, RUL, signals; for a scenario also the estimate's error) and "
-            "DIR/report.md. The measurement CSV: one header row; a column t (s, increasing, uniformly sampled at any "
+            "DIR/results.json (whether the model fits the data, the parts judged degrading, every component's estimate, "
+            "degrading probability and RUL with its interval at every step, detection time, isolated parameter, class "
+            "probabilities, End-of-Life predictions and, for a scenario with faults, metrics against the truth per "
+            "faulty part), the figures (time-frequency map, every component's estimate and RUL, signals; for a scenario "
+            "also the estimate's error) and DIR/report.md; prints the model-fit verdict and the degrading parts. The "
+            "chain's healthy machine is the model's nominal values, or the machine's own fitted on a healthy record "
+            "(--commission) or the record's first seconds (--commission-seconds). The measurement CSV: one header row; "
+            "a column t (s, increasing, uniformly sampled at any "
             "rate); a column named after the model's load source (its value, SI); one column per storage element named "
             "after it: an I element's flow (velocity, current), a C element's displacement q (extension, charge). "
             "Delimiter , or ; (a ; file may write 1,5 for 1.5); a UTF-8 byte-order mark is skipped. A header cell may "
@@ -384,9 +462,25 @@ def _add_phm(commands: Subcommands) -> None:
               "alarms on a healthy machine; too high detects faults later."),
     )
     phm.add_argument(
-        "--seed", type=int, default=None,
-        help="with --measurements: seed of the threshold calibration (default 0)",
+        "--load-noise", type=fraction_below_one("a load noise fraction in [0, 1)"), metavar="FRACTION",
+        help=("with --measurements: the load measurement's noise std as a fraction of the load's RMS over a 1 s step, "
+              "carried through the filters (default: 0, the load assumed exact; the model's residuals cannot tell it "
+              "from the sensors' noise, so it is not estimated). results.json's run says which"),
     )
+    phm.add_argument(
+        "--commission", metavar="HEALTHY.csv",
+        help=("with --measurements: a record of the same machine while healthy (the same columns, options and sample rate "
+              "as DATA.csv, at least 2 s): the chain first fits the machine's own values of its parts (inside their "
+              "limits) from it and takes them as the healthy machine, so that a machine off its catalogue values is not "
+              "taken for a fault (ea_gym.phm.commission)"),
+    )
+    phm.add_argument(
+        "--commission-seconds", type=positive_float, metavar="S",
+        help=("commission the healthy machine from the first S seconds (at least 2, at most the record's duration) of the "
+              "record itself (with a scenario: of its sensor record, as simulate --csv writes it); the machine is taken "
+              "as healthy over them. The chain still diagnoses the whole record, those seconds included"),
+    )
+    phm.add_argument("--seed", type=int, default=None, help="with --measurements: seed of the threshold calibration (default 0)")
     phm.set_defaults(run=_phm)
 
 
@@ -464,7 +558,7 @@ def error_line(error: BaseException) -> str:
 
 
 #: the arguments that name a command's input files, in the order an internal error names them
-INPUT_ARGUMENTS = {"scenario": "", "file": "", "source": "", "system": "--system ", "measurements": "--measurements ",
+INPUT_ARGUMENTS = {"scenario": "", "file": "", "source": "", "system": "--system ", "measurements": "--measurements ", "commission": "--commission ",
                    "classifier": "--classifier ", "resume": "--resume ", "ppo": "--ppo ", "tuned": "--tuned "}
 
 

@@ -11,7 +11,8 @@ from typing import Any, Protocol
 
 __all__ = [
     "COMMAND_GROUP", "Subcommands", "env_option", "positive_int", "non_negative_int", "positive_float", "non_negative_float",
-    "fraction_below_one", "system_option", "column_mapping", "column_names", "sample_rate_option",
+    "fraction_below_one", "system_option", "column_mapping", "columns_given", "column_names", "sample_rate_option",
+    "seconds_within",
 ]
 
 #: entry-point group of subcommands from other packages: each entry is ``add(commands: Subcommands) -> None``,
@@ -99,6 +100,21 @@ def column_mapping(text: str) -> tuple[str, str]:
     if not (sep and name and column):
         raise argparse.ArgumentTypeError(f"expected NAME=COLUMN (the model's column, the file's), got {text!r}")
     return name, column
+
+
+def columns_given(pairs: list[tuple[str, str]]) -> dict[str, str]:
+    """``--columns``' NAME=COLUMN pairs (:func:`column_mapping`, repeated) as a mapping; a NAME given twice is refused."""
+    mapping: dict[str, str] = {}
+    for name, column in pairs:
+        if mapping.setdefault(name, column) != column:
+            raise ValueError(f"--columns: {name!r} is mapped twice ({mapping[name]!r} and {column!r}); expected one COLUMN per NAME")
+    return mapping
+
+
+def seconds_within(option: str, seconds: float, least: float, most: float, what: str) -> None:
+    """``option``'s ``seconds`` (s) in [least, most], ``most`` the duration of ``what`` (a record); else a one-line refusal."""
+    if not least <= seconds <= most:
+        raise ValueError(f"{option}: {seconds:g} s; expected at least {least:g} s and at most the duration of {what} ({most:g} s)")
 
 
 def column_names(text: str) -> list[str]:

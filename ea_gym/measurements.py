@@ -116,6 +116,11 @@ class Measurements:
         """Time from the first sample to the last (s)."""
         return float(self.t[-1] - self.t[0])
 
+    def first(self, seconds: float) -> Measurements:
+        """The record's samples over its first ``seconds`` s (a healthy stretch to commission the machine on)."""
+        end = round(seconds * self.sample_rate) + 1
+        return Measurements(t=self.t[:end], load=self.load[:end], signals=self.signals[:end], rate=self.rate)
+
 
 def measurement_columns(model: SystemModel) -> tuple[str, ...]:
     """The columns a measurement file of ``model`` has: t, the load source, every storage element."""
@@ -408,18 +413,22 @@ def resampled(measurements: Measurements, sample_rate: float) -> Measurements:
     return Measurements(t=t, load=inside[:, 0], signals=inside[:, 1:], rate=sample_rate)
 
 
-def noise_estimate(measurements: Measurements, model: SystemModel, step: int, rounds: int = 6) -> float:
+def noise_estimate(
+    measurements: Measurements, model: SystemModel, step: int, rounds: int = 6, parameters: Mapping[str, float] | None = None
+) -> float:
     """The sensors' noise in the record as ``ChainTiming.noise`` (``ea_gym.phm.config``) reads it: a std, as a fraction of each
     signal's RMS over a step of ``step`` samples (the chain's 1 s), from the residuals of ``model`` itself.
 
-    A Kalman filter of the nominal model (exact discretization, the measured load held linearly between
-    samples, ``ea_gym.sensors.Sensors``' measurement model) runs on the record; its innovations e have the
+    ``parameters`` replaces some of the model's values (SI; a commissioned machine's own, ``ea_gym.phm.commission``):
+    the residuals of the machine it describes are what is left of the sensors' noise. A Kalman filter of the model
+    (exact discretization, the measured load held linearly between samples, ``ea_gym.sensors.Sensors``' measurement
+    model) runs on the record; its innovations e have the
     covariance C P C' + R, so the noise variance per signal and step is mean(e^2) - C P C' (covariance
     matching). Starting from 1 %, the level is set from that and the filter run again, ``rounds`` times:
     per signal and step the noise std over the signal's RMS, the median over the steps, the median over
     the signals. The process noise (``PROCESS_NOISE``) lets the filter follow what the load held linearly
-    leaves. Whatever the model cannot explain (a machine off its nominal values, a wrong load) reads as
-    noise: the model-fit test (``ea_gym.phm.fit``) says so. Measured on solve_ivp records of the quarter
+    leaves. Whatever the model cannot explain (a machine off the values given, a wrong load, the load's own
+    measurement noise) reads as noise: the model-fit test (``ea_gym.phm.fit``) says so. Measured on solve_ivp records of the quarter
     car of tests/test_measurements.py (10-15 Hz wheel hop at 100 Hz), spring_mass_damper, rlc_circuit and
     dc_motor at 0.5, 1 and 3 %: within 7 % of the truth (the 21-sample smoother this replaces read the
     quarter car's 1 % at 50 Hz as 4.9 %); without noise at most 0.11 % (dc_motor). About 1 s per 10,000
@@ -433,7 +442,8 @@ def noise_estimate(measurements: Measurements, model: SystemModel, step: int, ro
     if samples < 2 * step or step < 2:
         raise ValueError(f"noise_estimate: {samples} samples, fewer than two steps of {step}")
     h = float(np.median(np.diff(measurements.t)))
-    theta = np.array([model.nominal[name] for name in model.parameter_names], dtype=float)
+    values = {**model.nominal, **(parameters or {})}
+    theta = np.array([values[name] for name in model.parameter_names], dtype=float)
     mats = model.state_space.matrices(theta)
     step_matrices = discretize(mats.A, mats.B, h)
     inputs = model.source_inputs(np.asarray(measurements.load, dtype=float), np.zeros(samples))[0]

@@ -75,7 +75,8 @@ def run_model(
 
 
 def simulate(scenario: Scenario) -> Trajectory:
-    """Simulate the plant of ``scenario``: its model under its load and fault profile (true signals)."""
+    """Simulate the plant of ``scenario``: its model under its (true) load, every faulty parameter following its profile
+    at once (``Scenario.parameters_at``); the true signals."""
     return run_model(
         scenario.model,
         scenario.times(),

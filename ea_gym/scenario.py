@@ -1,4 +1,4 @@
-"""Scenario files: which system to run, under which load, for how long, with which fault.
+"""Scenario files: which system to run, under which load, for how long, with which faults.
 
 A scenario is a JSON file (or YAML when the path ends in .yaml/.yml), e.g. the paper's::
 
@@ -10,6 +10,9 @@ A scenario is a JSON file (or YAML when the path ends in .yaml/.yml), e.g. the p
      "initial_state": {"k": 0.01},
      "fault": {"parameter": "k", "profile": [[0, 100], [5, 100], [50, 86.5], [100, 100]]},
      "sensors": {"noise": 0.01, "seed": 0}}
+
+Several parts may age at once: ``"faults": [{"parameter": "k", "profile": ...}, {"parameter": "b", "profile":
+...}]``, each parameter at most once; ``"fault"`` is the one-fault form of the same (not both in one file).
 
 The load is one of ``{"kind": "constant", "value"}``, ``{"kind": "sines", "offset", "sines":
 [{"amplitude", "frequency", "phase"}]}`` or ``{"kind": "random", "mean", "std", "bandwidth",
@@ -133,9 +136,11 @@ class FaultFields(_Spec):
 
 
 class SensorFields(_Spec):
-    """Sensor noise std as a fraction of each measured signal's RMS, and its seed."""
+    """Sensor noise std as a fraction of each measured signal's RMS, the load measurement's noise std as a fraction of
+    the load's RMS (each over a step of the chain), and their seed."""
 
     noise: Real = Field(default=0.0, ge=0, lt=1)
+    load_noise: Real = Field(default=0.0, ge=0, lt=1)
     seed: Integer = Field(default=0, ge=0)
 
 
@@ -150,6 +155,7 @@ class ScenarioSpec(_Spec):
     sample_rate: Real = Field(default=100.0, gt=0)
     initial_state: dict[str, Real] = {}
     fault: FaultFields | None = None
+    faults: list[FaultFields] | None = None
     sensors: SensorFields = SensorFields()
 
 
@@ -172,8 +178,11 @@ class Scenario:
         duration: simulated time (s).
         sample_rate: sampling rate (Hz); duration * sample_rate is an integer.
         initial_state: energy variable of some storage elements at t = 0 (the rest are 0).
-        fault: the degrading parameter and its profile, or None.
+        faults: every degrading parameter with its profile (``"faults"``, or the one ``"fault"``), each
+            parameter at most once; () without a fault.
         noise: sensor noise std as a fraction of each measured signal's RMS.
+        load_noise: the load measurement's noise std as a fraction of the load's RMS (0: the chain reads the load
+            exactly; the plant is driven by the true load either way).
         sensor_seed: seed of the sensor noise.
         source: the file path, or "dict".
         spec: the whole validated file, for :meth:`to_dict`.
@@ -185,11 +194,22 @@ class Scenario:
     duration: float
     sample_rate: float
     initial_state: dict[str, float]
-    fault: FaultSpec | None
+    faults: tuple[FaultSpec, ...]
     noise: float
+    load_noise: float
     sensor_seed: int
     source: str
     spec: ScenarioSpec = field(repr=False)
+
+    @property
+    def fault(self) -> FaultSpec | None:
+        """The first of :attr:`faults` (the one fault of a single-fault scenario), None without a fault."""
+        return self.faults[0] if self.faults else None
+
+    @property
+    def faulty_parameters(self) -> tuple[str, ...]:
+        """The parameters of :attr:`faults`, in their order."""
+        return tuple(fault.parameter for fault in self.faults)
 
     @property
     def n_samples(self) -> int:
@@ -208,9 +228,16 @@ class Scenario:
         t = np.asarray(t, dtype=float)
         nominal = self.model.parameter_vector()
         values = np.broadcast_to(nominal, t.shape + nominal.shape).copy()
-        if self.fault is not None:
-            values[..., self.model.parameter_names.index(self.fault.parameter)] = self.fault.profile.value(t)
+        for fault in self.faults:
+            values[..., self.model.parameter_names.index(fault.parameter)] = fault.profile.value(t)
         return values
+
+    def true_end_of_life(self, t: np.ndarray) -> dict[str, np.ndarray]:
+        """The ground-truth End of Life (s) of every faulty parameter with safe limits, seen from times t (s), shaped like
+        t: where its profile's current trend meets the limit it heads for (``PiecewiseLinearProfile.trend_end_of_life``),
+        inf where the trend is flat, t itself where the value is at or beyond a limit. Its RUL is this minus t."""
+        limits = self.model.safe_limits
+        return {fault.parameter: fault.profile.trend_end_of_life(t, limits[fault.parameter]) for fault in self.faults if fault.parameter in limits}
 
     def initial_state_vector(self) -> np.ndarray:
         """Initial energy variables in ``model.state_names`` order (0 = at rest)."""
@@ -218,7 +245,7 @@ class Scenario:
 
     def to_dict(self) -> dict[str, Any]:
         """The validated scenario as JSON-ready data; load_scenario(to_dict()) gives it back."""
-        return self.spec.model_dump(mode="json")
+        return self.spec.model_dump(mode="json", exclude_none=True)
 
 
 def _field_path(loc: Sequence[str | int]) -> str:
@@ -288,10 +315,8 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
                 f"initial_state.{key}: unknown state {key!r} for system {model.name!r}; "
                 f"valid states are {list(model.state_names)}"
             )
-    fault = None
-    if spec.fault is not None:
-        fault, fault_problems = _fault(model, spec.fault, spec.sample_rate if resolved else None)
-        problems += fault_problems
+    faults, fault_problems = _faults(model, spec, spec.sample_rate if resolved else None)
+    problems += fault_problems
     if problems:
         raise ScenarioError.from_problems(name, problems)
 
@@ -302,8 +327,9 @@ def load_scenario(source: str | os.PathLike[str] | Mapping[str, Any], system: st
         duration=spec.duration,
         sample_rate=spec.sample_rate,
         initial_state=dict(spec.initial_state),
-        fault=fault,
+        faults=faults,
         noise=spec.sensors.noise,
+        load_noise=spec.sensors.load_noise,
         sensor_seed=spec.sensors.seed,
         source=name,
         spec=spec,
@@ -344,29 +370,64 @@ def _sampling_problems(spec: ScenarioSpec) -> list[str]:
     return problems
 
 
-def _fault(model: SystemModel, fields: FaultFields, sample_rate: float | None) -> tuple[FaultSpec | None, list[str]]:
-    """The fault's parameter and profile checked; with ``sample_rate`` (None: the model is not resolved even at its
-    nominal values, already said), the model's fastest mode at every value of the profile too."""
+def _faults(model: SystemModel, spec: ScenarioSpec, sample_rate: float | None) -> tuple[tuple[FaultSpec, ...], list[str]]:
+    """The scenario's faults (``"fault"``, or the list ``"faults"``) checked: one field of the two, each parameter once,
+    each profile as :func:`_fault` checks it; with ``sample_rate`` (None: the model is not resolved even at its nominal
+    values, already said), the model's fastest mode at every breakpoint of every profile, all the faulty parameters at
+    their values of that time."""
+    if spec.fault is not None and spec.faults is not None:
+        return (), ["faults: give either fault (one) or faults (a list of them), not both"]
+    if spec.faults is None:
+        listed, paths = ([spec.fault], ["fault"]) if spec.fault is not None else ([], [])
+    else:
+        listed, paths = list(spec.faults), [f"faults[{j}]" for j in range(len(spec.faults))]
+    problems: list[str] = []
+    first: dict[str, int] = {}
+    for j, fields in enumerate(listed):
+        if first.setdefault(fields.parameter, j) != j:
+            problems.append(f"{paths[j]}.parameter: {fields.parameter!r} is already faulty ({paths[first[fields.parameter]]}); "
+                            "expected each parameter at most once, its whole profile in one fault")
+    if problems:
+        return (), problems
+    faults = []
+    for fields, path in zip(listed, paths):
+        fault, fault_problems = _fault(model, fields, path)
+        problems += fault_problems
+        if fault is not None:
+            faults.append(fault)
+    if not problems and sample_rate is not None:
+        problems += _resolved_along(model, tuple(faults), paths, sample_rate)
+    return (() if problems else tuple(faults)), problems
+
+
+def _resolved_along(model: SystemModel, faults: tuple[FaultSpec, ...], paths: Sequence[str], sample_rate: float) -> list[str]:
+    """The model's fastest mode resolved at every breakpoint of every (piecewise linear) profile, every faulty parameter at
+    its value then; the first breakpoint that is not is named."""
+    for fault, path in zip(faults, paths):
+        for i, t in enumerate(fault.profile.times):
+            values = {other.parameter: float(other.profile.value(np.array(t))) for other in faults}
+            try:
+                model.check_resolved(sample_rate, f"{path}.profile[{i}]", values)
+            except ParameterError as exc:
+                return [str(exc)]
+    return []
+
+
+def _fault(model: SystemModel, fields: FaultFields, path: str) -> tuple[FaultSpec | None, list[str]]:
+    """A fault's parameter and profile checked, each problem named under ``path`` ("fault", "faults[1]")."""
     try:
-        model.check_name(fields.parameter, "fault.parameter")
+        model.check_name(fields.parameter, f"{path}.parameter")
     except ParameterError as exc:
         return None, [str(exc)]
     problems = []
     for i, (_, value) in enumerate(fields.profile):
         try:
-            model.check_near_nominal(fields.parameter, value, f"fault.profile[{i}]")
+            model.check_near_nominal(fields.parameter, value, f"{path}.profile[{i}]")
         except ParameterError as exc:
             problems.append(str(exc))
-    if not problems and sample_rate is not None:  # the fastest mode at every corner of the (piecewise linear) profile
-        for i, (_, value) in enumerate(fields.profile):
-            try:
-                model.check_resolved(sample_rate, f"fault.profile[{i}]", {fields.parameter: value})
-            except ParameterError as exc:
-                problems.append(str(exc))
-                break
     try:
         profile = PiecewiseLinearProfile(tuple(t for t, _ in fields.profile), tuple(v for _, v in fields.profile))
     except ProfileError as exc:
-        where = "fault.profile" if exc.index is None else f"fault.profile[{exc.index}]"
+        where = f"{path}.profile" if exc.index is None else f"{path}.profile[{exc.index}]"
         return None, [*problems, f"{where}: {exc.reason}"]
     return (None if problems else FaultSpec(fields.parameter, profile)), problems

@@ -147,6 +147,24 @@ def _slow_measurements(tmp: Path) -> list[str]:
     return ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--out", str(tmp / "out")]
 
 
+#: a valid spring-mass-damper record: 3 s at 100 Hz, at rest under 10 N
+RECORD = "t,F,m,k\n" + "".join(f"{i / 100:.2f},10,0,0.1\n" for i in range(300))
+
+
+def _phm_record(*extra: str, healthy_rate: float | None = None) -> Setup:
+    """``phm --measurements`` on RECORD with ``extra`` arguments; with ``healthy_rate``, --commission a record at that rate."""
+
+    def setup(tmp: Path) -> list[str]:
+        csv = _write(tmp / "data.csv", RECORD)
+        more = []
+        if healthy_rate is not None:
+            rows = "".join(f"{i / healthy_rate:.4f},10,0,0.1\n" for i in range(600))
+            more = ["--commission", str(_write(tmp / "healthy.csv", "t,F,m,k\n" + rows))]
+        return ["phm", "--system", "spring_mass_damper", "--measurements", str(csv), "--out", str(tmp / "out"), *more, *extra]
+
+    return setup
+
+
 def _measurements_case(content: str) -> Setup:
     def setup(tmp: Path) -> list[str]:
         csv = _write(tmp / "data.csv", content)
@@ -256,6 +274,27 @@ CLI_CASES: list[tuple[str, Setup, str]] = [
     ("fault profile at 1e6 x nominal", _scenario_case(scenario(fault={"parameter": "k", "profile": [[0, 100], [5, 1e8]]})),
      "fault.profile[1]"),
     ("sensor noise 1e6", _scenario_case(scenario(sensors={"noise": 1e6})), "sensors.noise: Input should be less than 1"),
+    ("fault and faults together", _scenario_case(scenario(fault={"parameter": "k", "profile": [[0, 100]]},
+                                                          faults=[{"parameter": "b", "profile": [[0, 0.5]]}])),
+     "faults: give either fault (one) or faults (a list of them), not both"),
+    ("a parameter listed twice in faults", _scenario_case(scenario(faults=[{"parameter": "k", "profile": [[0, 100]]},
+                                                                           {"parameter": "k", "profile": [[0, 90]]}]), "phm"),
+     "faults[1].parameter: 'k' is already faulty (faults[0]); expected each parameter at most once"),
+    ("faults as an object", _scenario_case(scenario(faults={"parameter": "k", "profile": [[0, 100]]})), "faults: Input should be a valid list"),
+    ("a second fault's profile at 1e6 x nominal", _scenario_case(scenario(faults=[{"parameter": "k", "profile": [[0, 100]]},
+                                                                                  {"parameter": "b", "profile": [[0, 0.5], [5, 5e5]]}])),
+     "faults[1].profile[1]: 'b' = 500000.0 is more than a factor 1000"),
+    ("load noise 2", _scenario_case(scenario(sensors={"load_noise": 2.0})), "sensors.load_noise: Input should be less than 1"),
+    ("phm --load-noise 1.5", _phm_record("--load-noise", "1.5"), "argument --load-noise: expected a load noise fraction in [0, 1), got '1.5'"),
+    ("phm --load-noise with a scenario", _scenario_case(GOOD, "phm", "--load-noise", "0.01"), "--load-noise goes with --measurements"),
+    ("phm --commission-seconds 0", _phm_record("--commission-seconds", "0"), "argument --commission-seconds: expected a positive number"),
+    ("phm --commission-seconds beyond the record", _phm_record("--commission-seconds", "1e9"),
+     "--commission-seconds: 1e+09 s; expected at least 2 s and at most the duration of"),
+    ("phm --commission with a scenario", _scenario_case(GOOD, "phm", "--commission", "healthy.csv"), "--commission goes with --measurements"),
+    ("phm --commission and --commission-seconds", _phm_record("--commission-seconds", "2", healthy_rate=100.0),
+     "--commission: give a healthy record or --commission-seconds S (the record's first seconds), not both"),
+    ("phm --commission at another rate", _phm_record(healthy_rate=200.0), "healthy.csv is sampled at 200 Hz, "),
+    ("phm --commission missing", _phm_record("--commission", "absent.csv"), "absent.csv: cannot read the measurements"),
     ("limits excluding the nominal", _scenario_case(scenario(limits={"k": [200, 300]})), "limits.k: 'k' = 100.0 is not inside its safe limits"),
     ("parameter outside its limits", _scenario_case(scenario(parameters={"k": 120.0})), "parameters.k: 'k' = 120.0 is not inside"),
     ("load 1e300", _scenario_case(scenario(load={"kind": "constant", "value": 1e300})),

@@ -22,7 +22,7 @@ from ea_gym.phm.harness import (
     chain_config,
     chain_sample_rate,
     fitted_initial_state,
-    nominal_reference,
+    fitted_reference,
     run_measurements,
     scenario_measurements,
 )
@@ -310,7 +310,7 @@ def test_streaming_equals_run_signals_on_the_whole_record(chain, record):
     measured = record.signals.T[None]
     load = record.load[None]
     load_rate = np.gradient(load, chain.h, axis=-1)
-    expected = run_signals(chain, measured, load, load_rate, nominal_reference(chain, measured, load, load_rate))
+    expected = run_signals(chain, measured, load, load_rate, fitted_reference(chain, measured, load, load_rate))
     streamed = run_measurements(chain, record).statuses
     assert len(streamed) == len(expected) == 30
     assert all(_same(a, b) for a, b in zip(expected, streamed))

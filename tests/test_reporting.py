@@ -98,7 +98,8 @@ def setting():
     chain = PHMChain(model, _FavoursK(classes_of(model), "strong", 1), thresholds, config)
     scenario = load_scenario(SCENARIO)
     run = run_scenario(scenario, chain, np.random.default_rng(3))
-    return run, chain, scenario
+    # the chain's one suspect alone, as without its joint side filter: the per-part outputs are test_reporting_parts.py's
+    return _with_statuses(run, lambda status: dataclasses.replace(status, parts=None)), chain, scenario
 
 
 def test_chain_results_are_json_and_consistent_with_the_run(setting):
@@ -236,14 +237,14 @@ def test_an_undecided_chain_isolates_nothing_and_reports_the_split_belief(settin
     assert "eol_phases" not in metrics and "estimation" not in metrics
     assert "undecided" in reporting.report.isolation_text(results)
     # the figure shows the favoured hypothesis's estimate, and no End of Life on it
-    figure = _figure_of(reporting.plot_estimate, monkeypatch, undecided, chain, scenario, tmp_path / "f.png", results=results)
-    _check_axes(figure)
+    figure = figure_of(reporting.plot_estimate, monkeypatch, undecided, chain, scenario, tmp_path / "f.png", results=results)
+    check_axes(figure)
     labels = [t.get_text() for t in figure.axes[0].get_legend().get_texts()]
     assert "estimate of k (favoured, not isolated)" in labels
     assert not any("fit" in label or "EoL" in label for label in labels), labels
 
 
-def _figure_of(plot, monkeypatch, *args, **kwargs):
+def figure_of(plot, monkeypatch, *args, **kwargs):
     """The matplotlib figure ``plot`` draws (kept open instead of saved)."""
     drawn = []
     monkeypatch.setattr(reporting.figures, "save_figure", lambda fig, path: drawn.append(fig) or path)
@@ -260,7 +261,7 @@ def _has_data(artist):
     return True  # a patch (axvspan)
 
 
-def _check_axes(figure):
+def check_axes(figure):
     """Every legend entry stands for an artist with data; every data line's points lie within the y limits."""
     for ax in figure.axes:
         legend = ax.get_legend()
@@ -282,8 +283,8 @@ def test_figures_draw_every_legend_entry_and_keep_data_within_the_axes(setting, 
     results = reporting.chain_results(run, chain, scenario)
     # a runaway estimate at the start must not stretch the axis nor leave it
     results["estimate"]["value"][0] = 1e6
-    figure = _figure_of(reporting.PLOTS[name], monkeypatch, run, chain, scenario, tmp_path / "f.png", results=results)
-    _check_axes(figure)
+    figure = figure_of(reporting.PLOTS[name], monkeypatch, run, chain, scenario, tmp_path / "f.png", results=results)
+    check_axes(figure)
     if name == "estimate":
         (ax,) = figure.axes
         assert ax.get_ylim() == pytest.approx((85.0 - 3.0, 105.0 + 7.0))
@@ -298,11 +299,11 @@ def test_a_wrong_isolation_draws_no_end_of_life_of_the_fault_on_its_estimate(set
     results = reporting.chain_results(run_m, chain, scenario)
     assert results["isolated_parameter"] == "m" and results["metrics"]["isolation_outcome"] == "wrong"
     assert {p["parameter"] for p in results["eol_predictions"]} == {"k"}
-    figure = _figure_of(reporting.plot_estimate, monkeypatch, run_m, chain, scenario, tmp_path / "f.png", results=results)
-    _check_axes(figure)
+    figure = figure_of(reporting.plot_estimate, monkeypatch, run_m, chain, scenario, tmp_path / "f.png", results=results)
+    check_axes(figure)
     (ax,) = figure.axes
     labels = [t.get_text() for t in ax.get_legend().get_texts()]
     assert not any("fit" in label or "EoL" in label for label in labels), labels
     assert "wrong" in ax.get_title() and ax.get_ylim() == pytest.approx((9.0 - 0.3, 11.0 + 0.7))
-    figure = _figure_of(reporting.plot_rul, monkeypatch, run_m, chain, scenario, tmp_path / "r.png", results=results)
-    _check_axes(figure)
+    figure = figure_of(reporting.plot_rul, monkeypatch, run_m, chain, scenario, tmp_path / "r.png", results=results)
+    check_axes(figure)

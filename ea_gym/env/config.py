@@ -60,8 +60,8 @@ class EnvConfig:
             ``SystemModel.random_load_scale`` (the nominal load unless the model gives a scale).
         phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
             (window, clock, sample rate and noise) is the environment's (``phm_config``), and it runs
-            without the model-fit test (``PHMConfig.fit``: these environments' episodes stay as they
-            were). None: the defaults.
+            without the model-fit test (``PHMConfig.fit``) and without a joint filter beside its estimator
+            (``JointFilterConfig.beside``): these environments' episodes stay as they were. None: the defaults.
     """
 
     step_seconds: float = 1.0
@@ -120,7 +120,9 @@ class EnvConfig:
     def phm_config(self) -> PHMConfig:
         """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
-        return dataclasses.replace(self.phm or PHMConfig(), timing=timing, fit=ModelFitConfig(enabled=False))
+        phm = self.phm or PHMConfig()
+        joint = dataclasses.replace(phm.joint, beside=False)  # no joint filter beside the estimator: v0's episodes stay as they were
+        return dataclasses.replace(phm, timing=timing, fit=ModelFitConfig(enabled=False), joint=joint)
 
 
 def env_config(config: EnvConfig | None = None, **overrides: Any) -> EnvConfig:

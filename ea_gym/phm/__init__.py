@@ -5,13 +5,15 @@ monitor (``ea_gym.diagnosis.monitor``) -> :mod:`~ea_gym.phm.detection` -> :mod:`
 inversion of :mod:`~ea_gym.phm.inversion_estimator`, the tracking filters of :mod:`~ea_gym.phm.tracking`,
 each registered with its prognosis in :mod:`~ea_gym.phm.registry`) -> :mod:`~ea_gym.phm.fit` (whether the
 model explains the data at all) -> fusion (:mod:`~ea_gym.phm.isolation`) ->
-:mod:`~ea_gym.phm.prognosis`; :mod:`~ea_gym.phm.config` holds each stage's settings and
+:mod:`~ea_gym.phm.prognosis`, with the joint filter (:mod:`~ea_gym.phm.joint`) beside for every part's health;
+:mod:`~ea_gym.phm.commissioning` fits the healthy machine's own values; :mod:`~ea_gym.phm.config` holds each stage's settings and
 :mod:`~ea_gym.phm.chain` composes them, :mod:`~ea_gym.phm.harness`
 runs scenarios and recorded signals through a chain (whole, or streamed as they arrive: ``StreamingChain``);
 :mod:`~ea_gym.phm.thresholds` keeps the detection thresholds computed once.
 """
 
-from ea_gym.phm.chain import HealthStatus, PHMChain
+from ea_gym.phm.chain import HealthStatus, PartHealth, PHMChain
+from ea_gym.phm.commissioning import Commissioning, commission
 from ea_gym.phm.config import (
     ChainTiming,
     DetectorConfig,
@@ -61,6 +63,7 @@ __all__ = [
     "ESTIMATORS",
     "ChainRun",
     "ChainTiming",
+    "Commissioning",
     "DetectorConfig",
     "EAInversion",
     "EAInversionEstimator",
@@ -79,6 +82,7 @@ __all__ = [
     "ModelFitConfig",
     "ModelFitTest",
     "PHMChain",
+    "PartHealth",
     "PHMConfig",
     "ParameterEstimates",
     "ParameterEstimator",
@@ -97,6 +101,7 @@ __all__ = [
     "chain_sample_rate",
     "check_duration",
     "classifier_for",
+    "commission",
     "drift_end_of_life",
     "fitted_initial_state",
     "make_stages",

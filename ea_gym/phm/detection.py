@@ -107,7 +107,14 @@ class Detector:
 
 
 def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> np.ndarray:
-    """Detection thresholds from fault-free runs under random loads at ``config.timing.noise``, (E + 1,)."""
+    """Detection thresholds from fault-free runs under random loads at ``config.timing.noise``, (E + 1,).
+
+    Where the load is measured with noise (``config.timing.load_noise`` > 0), the reference model runs on the
+    load as measured (as the chain's does: the harness drives it with the recorded load) and the monitor reads
+    that load as the source's value: the noise passes through the model's dynamics into the reference signals,
+    and every element's EA residual gains a part the sensors' noise does not make. The thresholds rise with it,
+    and a fault must be that much larger to be detected (the joint filter's estimates do not depend on it).
+    """
     from ea_gym.bondgraph.simulation import simulate_batch
 
     d = config.detector
@@ -124,11 +131,19 @@ def calibrate_thresholds(model: SystemModel, config: PHMConfig, rng: np.random.G
     clean = Sensors(model).measure(nominal, states, 0.0, rng)
     step = window_samples(timing.step, h)
     subs = window_samples(config.detector.window, config.monitor.sub_window)
+    measured_load, reference = u, clean
+    if timing.load_noise > 0:  # each step's load read with noise of its RMS, its rate the central difference
+        measured_load = np.concatenate([add_sensor_noise(u[:, s : s + step], timing.load_noise, rng) for s in range(0, len(t), step)], -1)
+        rate = np.gradient(measured_load, h, axis=-1)
+        reference_states = simulate_batch(
+            model.state_space, h, *model.source_inputs(measured_load, rate), nominal, np.zeros((runs, len(model.state_names)))
+        )
+        reference = Sensors(model).measure(nominal, reference_states, 0.0, rng)
     windows = []
     for start in range(0, len(t) - 1, step):
         part = slice(start, start + step + 1)
         noisy = add_sensor_noise(clean[..., part], timing.noise, rng)
-        windows.append(monitor.update(noisy, clean[..., part], u[:, part]))
+        windows.append(monitor.update(noisy, reference[..., part], measured_load[:, part]))
     # the balance windows are whole sub-windows: spread each over its sub-windows to align the sums
     per_sub = window_samples(config.monitor.balance_window, config.monitor.sub_window)
     balance = np.concatenate([w.balance for w in windows], -1).repeat(per_sub, -1) / per_sub

@@ -55,23 +55,26 @@ class ChainRun:
 
 
 def fitted_initial_state(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
-    """The nominal model's energy variables at the first sample that best explain the signals given, (N, nx).
+    """The reference model's energy variables at the first sample that best explain the signals given, (N, nx).
 
-    Least squares over the window (N, nx, T): the measured signals minus the model's response to the
-    load from rest, against its free responses from a unit value of each energy variable, each signal
-    weighed by the inverse of its RMS (the sensor noise scales with it). Started from one noisy sample
-    instead, a lightly damped reference rings against the plant for tens of seconds (the
+    The reference model is each system's healthy machine, ``chain.reference_parameters`` (N, P): the nominal values,
+    or those its commissioning found (``PHMChain.commission``). Least squares over the window (N, nx, T): the measured
+    signals minus the model's response to the load from rest, against its free responses from a unit value of each
+    energy variable, each signal weighed by the inverse of its RMS (the sensor noise scales with it). Started from one
+    noisy sample instead, a lightly damped reference rings against the plant for tens of seconds (the
     spring-mass-damper's free oscillation decays in 2 m / b = 40 s), and detection reads that as a fault.
     """
     n, nx, samples = measured.shape
     space, h = chain.model.state_space, chain.h
-    nominal = np.repeat(chain.model.parameter_vector()[None], max(n, nx), 0)
-    gain = chain.sensors.gain(nominal)
-    forced, _ = simulate_measured(space, h, *chain.model.source_inputs(load, load_rate), nominal[:n], np.zeros((n, nx)), gain[:n])
+    reference = chain.reference_parameters
+    forced, _ = simulate_measured(space, h, *chain.model.source_inputs(load, load_rate), reference, np.zeros((n, nx)), chain.sensors.gain(reference))
     rest = np.zeros((nx, samples, space.n_inputs))
-    free, _ = simulate_measured(space, h, rest, rest, nominal[:nx], np.eye(nx), gain[:nx])  # (state, signal, sample)
     states = np.empty((n, nx))
+    free = None
     for k in range(n):
+        if free is None or not np.array_equal(reference[k], reference[k - 1]):  # most rows share one machine: simulated once
+            machine = np.repeat(reference[k][None], nx, 0)
+            free, _ = simulate_measured(space, h, rest, rest, machine, np.eye(nx), chain.sensors.gain(machine))  # (state, signal, sample)
         weight = 1.0 / np.maximum(np.sqrt(np.mean(measured[k] ** 2, axis=-1)), TINY)
         design = (free * weight[None, :, None]).reshape(nx, -1).T
         target = ((measured[k] - forced[k]) * weight[:, None]).reshape(-1)
@@ -79,16 +82,29 @@ def fitted_initial_state(chain: PHMChain, measured: np.ndarray, load: np.ndarray
     return states
 
 
-def nominal_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
-    """The nominal model's signals under the load, (N, nx, T), started from the state fitted to the first
-    step (:func:`fitted_initial_state`)."""
-    nominal = np.repeat(chain.model.parameter_vector()[None], len(measured), 0)
+def reference_signals(chain: PHMChain, load: np.ndarray, load_rate: np.ndarray, start: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The reference model's signals under the load (N, nx, T) from energy variables ``start`` (N, nx), and its energy
+    variables at the last sample (N, nx): each system's healthy machine, ``chain.reference_parameters``."""
+    reference = chain.reference_parameters
+    return simulate_measured(
+        chain.model.state_space, chain.h, *chain.model.source_inputs(load, load_rate), reference, start, chain.sensors.gain(reference)
+    )
+
+
+def fitted_reference(chain: PHMChain, measured: np.ndarray, load: np.ndarray, load_rate: np.ndarray) -> np.ndarray:
+    """The reference model's signals under the load, (N, nx, T), started from the state fitted to the first step
+    (:func:`fitted_initial_state`)."""
     first = slice(0, chain.step_samples + 1)
     start = fitted_initial_state(chain, measured[..., first], load[:, first], load_rate[:, first])
-    signals, _ = simulate_measured(
-        chain.model.state_space, chain.h, *chain.model.source_inputs(load, load_rate), nominal, start, chain.sensors.gain(nominal)
-    )
-    return signals
+    return reference_signals(chain, load, load_rate, start)[0]
+
+
+def measured_load(load: np.ndarray, fraction: float, step: int, rng: np.random.Generator) -> np.ndarray:
+    """The load as a sensor reads it, (..., T): white noise of std ``fraction`` x the load's RMS over each run of ``step``
+    samples (``ChainTiming.load_noise``' definition; the chain's step), drawn from ``rng``; the load itself for 0."""
+    if fraction == 0:
+        return load
+    return np.concatenate([add_sensor_noise(load[..., s : s + step], fraction, rng) for s in range(0, load.shape[-1], step)], -1)
 
 
 def run_signals(
@@ -106,7 +122,7 @@ def run_signals(
         measured: measured signals (flows of I, displacements of C), (N, nx, T): recorded, or a
             simulation's clean signals with ``noise``.
         load, load_rate: the source's value and time derivative, (N, T).
-        reference: the reference model's signals, as ``measured``; None: ``nominal_reference``.
+        reference: the reference model's signals, as ``measured``; None: :func:`fitted_reference`.
         noise: adds sensor noise to each step's chunk (its first sample shared with the previous one),
             None for recorded signals.
         progress: wraps the step starts.
@@ -119,7 +135,7 @@ def run_signals(
         raise ValueError(f"measured must be (N, nx, T) = ({n}, {nx}, T) signals, got shape {measured.shape}")
     if load.shape != (n, measured.shape[2]) or load_rate.shape != load.shape:
         raise ValueError(f"load and load_rate must be (N, T) = {(n, measured.shape[2])}, got {load.shape} and {load_rate.shape}")
-    reference = nominal_reference(chain, measured, load, load_rate) if reference is None else reference
+    reference = fitted_reference(chain, measured, load, load_rate) if reference is None else reference
     step = chain.step_samples
     statuses = []
     chain.reset()
@@ -138,16 +154,23 @@ def _plant_signals(scenario: Scenario, sensors: Sensors, rng: np.random.Generato
 
 
 def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, progress: Progress | None = None) -> ChainRun:
-    """Simulate ``scenario``'s plant and the reference model and feed them step by step through ``chain`` (N = 1)."""
-    model = scenario.model
+    """Simulate ``scenario``'s plant (its true load, every fault profile) and feed it step by step through ``chain`` (N = 1)
+    beside the reference model (``chain.reference_parameters``, from the scenario's initial state).
+
+    The chain reads the load as its sensor does: with the scenario's ``load_noise`` (:func:`measured_load`), its
+    derivative then the central difference of the noisy samples, as a record's (:class:`StreamingChain`); exactly without
+    it. The reference model is driven by the load the chain reads.
+    """
     t = scenario.times()
     load = scenario.make_load()
     plant, clean = _plant_signals(scenario, chain.sensors, rng)
-    reference = run_model(model, t, load, None, scenario.initial_state_vector())
-    nominal = model.parameter_vector()[None]
-    expected = chain.sensors.measure(nominal, reference.states[None], 0.0, rng)
+    read, read_rate = load.value(t)[None], load.derivative(t)[None]
+    if scenario.load_noise > 0:
+        read = measured_load(read, scenario.load_noise, chain.step_samples, rng)
+        read_rate = np.gradient(read, chain.h, axis=-1)
+    expected, _ = reference_signals(chain, read, read_rate, scenario.initial_state_vector()[None])
     statuses = run_signals(
-        chain, clean, load.value(t)[None], load.derivative(t)[None], expected,
+        chain, clean, read, read_rate, expected,
         noise=lambda chunk: add_sensor_noise(chunk, chain.config.timing.noise, rng), progress=progress,
     )
     index = np.round(np.array([s.t[0] for s in statuses]) * scenario.sample_rate).astype(int)
@@ -155,19 +178,20 @@ def run_scenario(scenario: Scenario, chain: PHMChain, rng: np.random.Generator, 
 
 
 def scenario_measurements(scenario: Scenario, rng: np.random.Generator) -> Measurements:
-    """What the sensors of ``scenario``'s plant record: its load and every storage element's signal with
-    the scenario's sensor noise (its std a fraction of each signal's RMS over each step of ``ChainTiming().step``)."""
+    """What the sensors of ``scenario``'s plant record: its load with the scenario's load noise and every storage element's
+    signal with its sensor noise (each std a fraction of the signal's RMS over each step of ``ChainTiming().step``)."""
     h = 1.0 / scenario.sample_rate
     plant, clean = _plant_signals(scenario, Sensors(scenario.model), rng)
     step = window_samples(ChainTiming().step, h)
     noisy = np.concatenate([add_sensor_noise(clean[..., s : s + step], scenario.noise, rng) for s in range(0, clean.shape[-1], step)], -1)
-    return Measurements(t=plant.t, load=scenario.make_load().value(plant.t), signals=noisy[0].T)
+    load = measured_load(scenario.make_load().value(plant.t), scenario.load_noise, step, rng)
+    return Measurements(t=plant.t, load=load, signals=noisy[0].T)
 
 
 class StreamingChain:
     """The chain on one machine's recorded signals, fed in chunks of any length as they arrive.
 
-    The reference model (nominal parameters) runs alongside, driven by the recorded load and started
+    The reference model (the healthy machine: ``chain.reference_parameters``) runs alongside, driven by the recorded load and started
     from the state that best explains the first step (:func:`fitted_initial_state`). The load's
     derivative is its central difference (one-sided at the record's ends), so the load between samples
     is the cubic through them (Catmull-Rom). A step is processed once the sample after its end has
@@ -192,7 +216,7 @@ class StreamingChain:
         self._received = 0  # samples fed so far
         self._first = 0  # record index of the buffer's first sample
         self._last_time: float | None = None  # of the last sample fed (s)
-        self._reference_state: np.ndarray | None = None  # nominal model's energy variables at the next step's start
+        self._reference_state: np.ndarray | None = None  # the reference model's energy variables at the next step's start
         self._finished = False
 
     @property
@@ -272,10 +296,7 @@ class StreamingChain:
         measured = self._signals[:, offset:end][None]
         if self._reference_state is None:
             self._reference_state = fitted_initial_state(chain, measured, load[None], load_rate[None])
-        reference, self._reference_state = simulate_measured(
-            chain.model.state_space, chain.h, *chain.model.source_inputs(load[None], load_rate[None]), chain.model.parameter_vector()[None],
-            self._reference_state, chain.sensors.gain(chain.model.parameter_vector()[None]),
-        )
+        reference, self._reference_state = reference_signals(chain, load[None], load_rate[None], self._reference_state)
         status = chain.update(measured, reference, load[None], load_rate[None])
         self.statuses.append(status)
         keep = start + step - 1  # the next step's start and the sample before it
@@ -323,10 +344,11 @@ def chain_sample_rate(record_rate: float, config: PHMConfig = PHMConfig()) -> fl
     return math.ceil(per_sub_window) / config.monitor.sub_window
 
 
-def chain_config(sample_rate: float, noise: float) -> PHMConfig:
-    """The chain's settings at ``sample_rate`` (Hz, a whole number of samples per sub-window) and sensor ``noise``: the
-    defaults, with a smoothing window that fits a step (``MonitorConfig.fitting``: the default 51 samples above 50 Hz)."""
-    timing = ChainTiming(sample_rate=sample_rate, noise=noise)
+def chain_config(sample_rate: float, noise: float, load_noise: float = 0.0) -> PHMConfig:
+    """The chain's settings at ``sample_rate`` (Hz, a whole number of samples per sub-window), sensor ``noise`` and the load
+    measurement's ``load_noise`` (fractions of each signal's RMS over a step, ``ChainTiming``): the defaults, with a
+    smoothing window that fits a step (``MonitorConfig.fitting``: the default 51 samples above 50 Hz)."""
+    timing = ChainTiming(sample_rate=sample_rate, noise=noise, load_noise=load_noise)
     monitor = PHMConfig().monitor.fitting(window_samples(timing.step, 1.0 / sample_rate))
     return PHMConfig(timing=timing, monitor=monitor)
 

@@ -196,7 +196,8 @@ def drift_end_of_life(
         value, drift, covariance[..., 0, 0], covariance[..., 0, 1], covariance[..., 1, 1], limits[..., 0], limits[..., 1], t, diffusion
     )
     shape = inputs[0].shape
-    value, drift, v_tt, v_td, v_dd, lower, upper, stamps, walk = (np.ascontiguousarray(x, dtype=float).reshape(-1) for x in inputs)
+    # copies: numba warns on broadcast_arrays' views
+    value, drift, v_tt, v_td, v_dd, lower, upper, stamps, walk = (np.array(x, dtype=float).reshape(-1) for x in inputs)
     ends = np.empty((len(value), 3))
     # (rate tau - margin)^2 = z^2 (v_tt + 2 tau v_td + tau^2 v_dd), the diffusion folded into v_td: compiled, element by element
     drift_ends(value, drift, v_tt, v_td, v_dd, lower, upper, stamps, walk, normal_quantile(0.5 + 0.5 * confidence) ** 2, ends)
@@ -354,6 +355,19 @@ class DriftPrognosis:
         estimate, eol, eol_low, eol_high, drift, drift_variance, stamps = out  # stamps: a copy of t, which moves on
         predictions = DriftEndsOfLife(np.array(confident, dtype=bool), stamps, eol, eol_low, eol_high, estimate, drift, drift_variance)
         return Prognosis(estimate=estimate, eol=eol, eol_low=eol_low, eol_high=eol_high, end_of_life=predictions)
+
+    def every_part(self, estimates: ParameterEstimates, named: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The End of Life and its interval (s) of every ``named`` part (N, D) at once, each from its own value and
+        drift (``drift_end_of_life``), inf where a part is not named or its end lies beyond the horizon after
+        the time its value describes; (N, D) each."""
+        covariance = np.empty(estimates.value.shape + (2, 2))
+        covariance[..., 0, 0], covariance[..., 1, 1] = estimates.variance, estimates.drift_variance
+        covariance[..., 0, 1] = covariance[..., 1, 0] = estimates.covariance
+        ends = drift_end_of_life(
+            estimates.value, estimates.drift, covariance, self.limits, estimates.time, self.config.confidence, self.diffusion
+        )
+        eol, low, high = (np.where(named & (end - estimates.time <= self.config.horizon), end, math.inf) for end in ends)
+        return eol, low, high
 
     @cached_property
     def _squared_quantile(self) -> float:

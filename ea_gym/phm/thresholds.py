@@ -38,9 +38,13 @@ SHIPPED_THRESHOLDS = Path(str(importlib.resources.files("ea_gym") / "data" / f"{
 
 
 def calibration_settings(config: PHMConfig) -> dict[str, Any]:
-    """The chain settings the calibration reads: step, sample rate, noise, monitor and detector."""
+    """The chain settings the calibration reads: step, sample rate, noise, monitor and detector, and the load's noise
+    where there is some (an exact load's key stays as it was, so the shipped and cached thresholds still hold)."""
     timing = config.timing
-    return {"step": timing.step, "sample_rate": timing.sample_rate, "noise": timing.noise, "monitor": config.monitor, "detector": config.detector}
+    settings = {"step": timing.step, "sample_rate": timing.sample_rate, "noise": timing.noise, "monitor": config.monitor, "detector": config.detector}
+    if timing.load_noise > 0:
+        settings["load_noise"] = timing.load_noise
+    return settings
 
 
 def calibration_key(model: SystemModel, config: PHMConfig, rng: np.random.Generator) -> str:

@@ -2,7 +2,9 @@
 
 :func:`plot_time_frequency`, :func:`plot_estimate`, :func:`plot_estimate_error`, :func:`plot_rul` and
 :func:`plot_signals` each draw one PNG from the run, the chain and the results of
-:func:`~ea_gym.reporting.results.chain_results`; ``PLOTS`` names them as ``FIGURES`` does their files.
+:func:`~ea_gym.reporting.results.chain_results`; ``PLOTS`` names them as ``FIGURES`` does their files. The estimate
+figure is drawn by :mod:`~ea_gym.reporting.estimate_figure`; what the figures share (each component's colour and
+marker, End-of-Life labels that never overprint) is in :mod:`~ea_gym.reporting.drawing`.
 
 Units: times in s, parameters in their SI unit (``SystemModel.units``), EA in J, frequencies in Hz.
 """
@@ -23,61 +25,26 @@ from ea_gym.diagnosis.features import residual_spectrogram
 from ea_gym.files import save_figure
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.pyplot import plt
-from ea_gym.reporting.results import (
-    ALPHA,
-    ESTIMATION_START,
-    chain_results,
-    estimate_series,
-    fault_of,
-    faulty_parameter,
-    isolated_class,
-    truth_limits,
-)
+from ea_gym.reporting.drawing import component_style, joint_results, mark_events, plot_within
+from ea_gym.reporting.estimate_figure import estimate_figure
+from ea_gym.reporting.results import ALPHA, ESTIMATION_START, chain_results
 from ea_gym.scenario import Scenario
 
 #: figure name -> (file name, caption)
 FIGURES: dict[str, tuple[str, str]] = {
     "time_frequency": ("time_frequency.png", "Time-frequency map of the I element's EA residual (paper Fig 9)"),
-    "estimate": ("estimate.png", "Parameter estimate, truth, safe limits and End-of-Life extrapolations (paper Fig 12)"),
-    "estimate_error": ("estimate_error.png", "Estimation error over time (paper Fig 13)"),
-    "rul": ("rul.png", "Remaining Useful Life: prediction, interval and truth with the alpha cone"),
+    "estimate": ("estimate.png", "Every component's estimate, truth, safe limits and End of Life (paper Fig 12)"),
+    "estimate_error": ("estimate_error.png", "Estimation error of every component over time (paper Fig 13)"),
+    "rul": ("rul.png", "Remaining Useful Life of every component: prediction, interval and truth with the alpha cone"),
     "signals": ("signals.png", "Measured and reference Energy Activity per element, detection statistic"),
 }
 #: the figures that compare with the truth: not drawn for recorded measurements
 TRUTH_FIGURES = ("estimate_error",)
 #: the captions of the figures of recorded measurements, where they differ: no truth is drawn
 RECORDED_CAPTIONS: dict[str, str] = {
-    "estimate": "Parameter estimate, safe limits and End-of-Life extrapolations (paper Fig 12; no truth: recorded measurements)",
-    "rul": "Remaining Useful Life: prediction and interval (no truth: recorded measurements)",
+    "estimate": "Every component's estimate, safe limits and End of Life (paper Fig 12; no truth: recorded measurements)",
+    "rul": "Remaining Useful Life of every component: prediction and interval (no truth: recorded measurements)",
 }
-
-
-def _mark_events(ax: Any, results: dict, scenario: Scenario | None, label: bool = True) -> None:
-    """Vertical lines at the fault onset, the profile's breakpoints and the detection time."""
-    fault = fault_of(scenario)
-    if fault is not None:
-        times = fault.profile.times
-        for j, tb in enumerate(times):
-            ax.axvline(tb, color="0.6", lw=0.8, ls=":", label="profile breakpoints" if label and j == 0 else None)
-    if results.get("detection_time") is not None:
-        ax.axvline(results["detection_time"], color="tab:red", lw=1.0, ls="--",
-                   label=f"detection {results['detection_time']:g} s" if label else None)
-
-
-def plot_within(ax: Any, x: ArrayLike, y: ArrayLike, bottom: float, top: float, color: str, label: str,
-                marker: str = ".", size: float = 4.0) -> None:
-    """Points (x, y) on an axis whose y range is [bottom, top] (set by the caller): those outside are
-    drawn at the edge they passed as triangles pointing off the axis, so that none leaves it and the
-    axis does not stretch to a runaway value. Nothing is drawn (and nothing enters the legend) for an
-    empty set."""
-    x, y = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
-    inside = (y >= bottom) & (y <= top)
-    if inside.any():
-        ax.plot(x[inside], y[inside], marker, color=color, ms=size, ls="none", label=label)
-    for edge, outside, pointer in ((top, y > top, "^"), (bottom, y < bottom, "v")):
-        if outside.any():
-            ax.plot(x[outside], np.full(int(outside.sum()), edge), pointer, color=color, ms=size + 2, ls="none",
-                    clip_on=False, label=f"{label}: off the axis, {'above' if edge == top else 'below'} it")
 
 
 def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
@@ -108,7 +75,7 @@ def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | Non
                              norm=LogNorm(vmin=top * 1e-3, vmax=top), cmap="viridis")
         colorbar = fig.colorbar(mesh, ax=ax)
         colorbar.set_label(f"|STFT| of the EA residual of {name} (J)")
-        _mark_events(ax, results, scenario)
+        mark_events(ax, results, scenario)
         ax.set_xlim(0, float(run.t[-1]))
         if ax.get_legend_handles_labels()[0]:  # nothing to mark without a fault profile or an alarm
             ax.legend(loc="upper right", fontsize=8, framealpha=0.8)
@@ -119,145 +86,20 @@ def plot_time_frequency(run: ChainRun, chain: PHMChain, scenario: Scenario | Non
     return save_figure(fig, path)
 
 
-def _truth_curve(scenario: Scenario, parameter: str, end: float) -> tuple[np.ndarray, np.ndarray]:
-    t = np.linspace(0.0, end, 2001)
-    index = scenario.model.parameter_names.index(parameter)
-    return t, scenario.parameters_at(t)[:, index]
-
-
-def _fit_steps(run: ChainRun, chain: PHMChain, results: dict, parameter: str) -> list[int]:
-    """Steps whose extrapolation of ``parameter`` is drawn: the middle prediction of each scored phase,
-    else up to 3 of its predictions spread over the run. Only steps at which ``parameter`` was the
-    isolated one: another parameter's End of Life is never drawn on its estimate."""
-    t = run.t
-    chosen: list[float] = []
-    phases = (results.get("metrics") or {}).get("eol_phases") or []
-    for phase in phases:
-        first, last = phase["prediction_times"]
-        chosen.append(0.5 * (first + last))
-    if not chosen:
-        times = [p["t"] for p in results["eol_predictions"] if p["parameter"] == parameter]
-        if times:
-            chosen = [times[int(k)] for k in np.unique(np.linspace(0, len(times) - 1, min(3, len(times))).round())]
-    own = chain.classes.index(parameter)
-    candidates = np.flatnonzero([math.isfinite(float(s.eol[0])) and isolated_class(s) == own for s in run.statuses])
-    steps = []
-    for target in chosen[:3]:
-        if len(candidates):
-            steps.append(int(candidates[np.argmin(np.abs(t[candidates] - target))]))
-    return sorted(set(steps))
-
-
-def _estimate_title(parameter: str, results: dict, scenario: Scenario | None) -> str:
-    """What the estimate figure shows, and whether the parameter is the faulty one."""
-    fault = faulty_parameter(scenario)
-    isolated = results["estimate"]["parameter"]
-    if isolated is None:
-        state = (results.get("isolation") or {}).get("state", "no alarm")
-        if state == "undecided":
-            return f"No parameter isolated at the end (undecided): {parameter}, the one favoured, without End of Life"
-        return f"No parameter isolated ({state}): the true {parameter} alone"
-    if fault is not None and isolated != fault:
-        return f"Estimate of {isolated}, isolated wrongly (the fault is in {fault}): no End of Life of {fault} on it"
-    return f"Estimate of {isolated} and End-of-Life extrapolation"
-
-
-def _draw_extrapolations(ax: Any, run: ChainRun, chain: PHMChain, scenario: Scenario | None, results: dict, parameter: str,
-                         ylim: tuple[float, float], end: float) -> float:
-    """The isolated ``parameter``'s trend fits up to its limits, the predicted End of Life (x) and the true
-    trend's (circle); returns the right end of the time axis (s)."""
-    lower, upper = chain.model.safe_limits[parameter]
-    right = end
-    colors = ["tab:orange", "tab:purple", "tab:brown"]
-    # the truth's End of Life only for the faulty parameter
-    fault = fault_of(scenario) if faulty_parameter(scenario) == parameter else None
-    marked = {"predicted": False, "true": False}
-    for k, i in enumerate(_fit_steps(run, chain, results, parameter)):
-        prediction = run.statuses[i].end_of_life[0]
-        if prediction is None or not math.isfinite(prediction.eol):
-            continue
-        fit, eol = prediction.fit, prediction.eol
-        level = lower if prediction.limit == "lower" else upper
-        # the polynomial trend from its first estimate (EA inversion), or the tracked drift from now
-        x = np.linspace(prediction.t if fit is None else fit.times[0], eol, 200)
-        y = prediction.path(x)
-        color = colors[k % len(colors)]
-        what = "tracked drift" if fit is None else f"degree-{len(fit.coefficients) - 1} fit"
-        ax.plot(x, np.where((y >= ylim[0]) & (y <= ylim[1]), y, np.nan), color=color, lw=1.4, ls="-.",
-                label=f"{what} at t = {prediction.t:g} s")
-        ax.plot([eol], [level], "x", color=color, ms=10, mew=2.5, zorder=5, label=None if marked["predicted"] else "predicted EoL")
-        marked["predicted"] = True
-        text = f"EoL {eol:.1f} s"
-        if scenario is not None and fault is not None:
-            limits = truth_limits(scenario, parameter)
-            true_eol = float(fault.profile.trend_end_of_life(np.array([prediction.t]), limits)[0])
-            if math.isfinite(true_eol):
-                true_level = limits[0 if prediction.limit == "lower" else 1]
-                ax.plot([true_eol], [true_level], "o", color=color, ms=13, mfc="none", mew=1.5, zorder=6,
-                        label=None if marked["true"] else "true trend EoL")
-                marked["true"] = True
-                text += f" (true {true_eol:.1f} s)"
-                right = max(right, true_eol)
-        offset = 8 if prediction.limit == "upper" else -16
-        ax.annotate(text, (eol, level), textcoords="offset points", xytext=(-150 if eol > 0.8 * right else -40, offset),
-                    color=color, fontsize=9, fontweight="bold")
-        right = max(right, eol)
-    return right
-
-
 def plot_estimate(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
                   results: dict | None = None) -> Path:
-    """Paper Fig 12: the isolated parameter's estimate vs its truth, the safe limits, and the degree-1
-    extrapolations from a prediction time in each phase up to the limit, with the predicted End of
-    Life (x) and the true trend's End of Life (circle).
-
-    The y axis spans the parameter's safe range with margins; estimates beyond it are drawn at its
-    edge (:func:`plot_within`). Only End-of-Life predictions made while the drawn parameter was the
-    isolated one are drawn. Undecided at the end: the estimate of the parameter the belief favours,
-    without End of Life; no alarm: the truth of the faulty parameter alone."""
+    """Paper Fig 12 for every component: one panel per degradable part (:func:`estimate_figure`)."""
     results = chain_results(run, chain, scenario) if results is None else results
-    estimate = results["estimate"]
-    # undecided: the estimate of the parameter the belief favours, as one hypothesis among others
-    favoured = (results.get("isolation") or {}).get("favoured")
-    if estimate["parameter"] is None and favoured is not None:
-        estimate = estimate_series(run, chain, chain.classes.index(favoured))
-    parameter = estimate["parameter"] or faulty_parameter(scenario)
-    fig, ax = plt.subplots(figsize=(10, 5.5))
-    end = float(run.t[-1])
-    if parameter is None:
-        ax.text(0.5, 0.5, "no parameter isolated", ha="center", transform=ax.transAxes)
-        return save_figure(fig, path)
-    unit = chain.model.units.get(parameter, "")
-    lower, upper = chain.model.safe_limits[parameter]
-    span = upper - lower
-    ylim = (lower - 0.15 * span, upper + 0.35 * span)  # room for the legend above the limits
-    right = end
-    if results["estimate"]["parameter"]:
-        right = _draw_extrapolations(ax, run, chain, scenario, results, parameter, ylim, end)
-    right = min(right, 2.0 * end) * 1.02
-    if scenario is not None:
-        tt, truth = _truth_curve(scenario, parameter, right)
-        ax.plot(tt, np.clip(truth, *ylim), color="k", lw=1.5, label=f"true {parameter}")
-    undecided = results["estimate"]["parameter"] is None
-    plot_within(ax, estimate["t"], estimate["value"], *ylim, color="0.45" if undecided else "tab:blue",
-                label=f"estimate of {parameter}" + (" (favoured, not isolated)" if undecided else ""))
-    ax.axhline(lower, color="tab:red", lw=1.0, label=f"safe limits {lower:g} / {upper:g} {unit}")
-    ax.axhline(upper, color="tab:red", lw=1.0)
-    ax.set_ylim(*ylim)
-    ax.set_xlim(0, right)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel(f"{parameter} ({unit})")
-    ax.set_title(_estimate_title(parameter, results, scenario))
-    ax.grid(alpha=0.3)
-    ax.legend(loc="upper center", fontsize=8, ncol=3, framealpha=0.85)
-    fig.tight_layout()
-    return save_figure(fig, path)
+    return save_figure(estimate_figure(run, chain, scenario, results), path)
 
 
 def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path: str | os.PathLike[str],
                         results: dict | None = None) -> Path:
-    """Paper Fig 13: estimate minus truth over time (parameter unit, and % of nominal on the right)."""
+    """Paper Fig 13: estimate minus truth over time; every component's (:func:`_component_errors`) with the chain's
+    per-part health, else the suspect's (parameter unit, and % of nominal on the right)."""
     results = chain_results(run, chain, scenario) if results is None else results
+    if joint_results(results):
+        return save_figure(_component_errors(chain, scenario, results), path)
     estimate = results["estimate"]
     parameter = estimate["parameter"]
     fig, ax = plt.subplots(figsize=(10, 4.5))
@@ -276,7 +118,7 @@ def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path
     ax.plot(t, np.where(np.abs(error) <= bound, error, np.nan), "-", color="tab:blue", lw=0.8)
     plot_within(ax, t, error, -bound, bound, color="tab:blue", label=f"estimate - truth of {parameter}")
     ax.axhline(0.0, color="k", lw=0.8)
-    _mark_events(ax, results, scenario)
+    mark_events(ax, results, scenario)
     ax.set_ylim(-bound, bound)
     estimation = (results.get("metrics") or {}).get("estimation")
     if estimation:
@@ -303,51 +145,130 @@ def plot_estimate_error(run: ChainRun, chain: PHMChain, scenario: Scenario, path
     return save_figure(fig, path)
 
 
+def _component_errors(chain: PHMChain, scenario: Scenario, results: dict) -> Any:
+    """Every component's estimate minus its truth over time, as % of its nominal value (the parts' units differ), each
+    in its own colour and marker; the axis fits the errors from ESTIMATION_START on, larger ones drawn at its edge."""
+    fig, ax = plt.subplots(figsize=(10, 4.5))
+    ax.axvspan(0, ESTIMATION_START, color="0.9", label=f"start-up (not scored, < {ESTIMATION_START:g} s)")
+    errors = {}
+    for name, series in results["components"].items():
+        t = np.asarray(series["t"], dtype=float)
+        value = np.array([np.nan if v is None else v for v in series["value"]], dtype=float)
+        truth = scenario.parameters_at(t)[:, scenario.model.parameter_names.index(name)]
+        errors[name] = (t, 100.0 * (value - truth) / float(scenario.model.nominal[name]))
+    scored = [np.abs(error[(t >= ESTIMATION_START) & np.isfinite(error)]) for t, error in errors.values()]
+    bound = max(1.3 * max((float(e.max()) for e in scored if e.size), default=0.0), 1e-9)
+    metrics = (results.get("metrics") or {}).get("parts") or {}
+    for name, (t, error) in errors.items():
+        color, marker = component_style(chain, name)
+        ax.plot(t, np.where(np.abs(error) <= bound, error, np.nan), "-", color=color, lw=0.7)
+        median = (metrics.get(name) or {}).get("estimation")
+        scored_text = f" (median {median['relative_to_nominal']['median']:.2%} of nominal)" if median else ""
+        plot_within(ax, t, error, -bound, bound, color=color, marker=marker, size=3.0, label=f"estimate - truth of {name}{scored_text}")
+    ax.axhline(0.0, color="k", lw=0.8)
+    mark_events(ax, results, scenario)
+    ax.set_ylim(-bound, bound)
+    ax.set_xlim(0, max(float(t[-1]) for t, _ in errors.values()))
+    ax.set_xlabel("time the estimate describes (s)")
+    ax.set_ylabel("error (% of nominal)")
+    ax.set_title("Error of every component's estimate")
+    ax.grid(alpha=0.3)
+    ax.legend(loc="lower left", fontsize=8, framealpha=0.85)
+    fig.tight_layout()
+    return fig
+
+
 def plot_rul(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path: str | os.PathLike[str],
              results: dict | None = None) -> Path:
-    """RUL predictions (points, per parameter they were made for) and interval (shaded) over time vs the
-    true RUL of the profile's trend, with the alpha = 0.2 cone (dashed). The y axis is [0, 2 x the
-    largest finite true RUL]; predictions beyond it are drawn at its edge (:func:`plot_within`)."""
+    """The Remaining Useful Life of every component (:func:`rul_figure`)."""
     results = chain_results(run, chain, scenario) if results is None else results
-    predictions = results["eol_predictions"]
+    return save_figure(rul_figure(run, chain, scenario, results), path)
+
+
+def _true_rul(scenario: Scenario, name: str, tt: np.ndarray) -> np.ndarray:
+    """The true RUL of faulty part ``name`` at times tt (s), NaN where its trend is flat and where its End of Life jumps
+    (a new segment of its profile: the line breaks there)."""
+    true_eol = scenario.true_end_of_life(tt)[name]
+    true_rul = np.where(np.isfinite(true_eol), true_eol - tt, np.nan)
+    jumps = np.flatnonzero(np.abs(np.diff(np.nan_to_num(true_eol, posinf=1e300))) > 1e-6) + 1
+    true_rul[jumps] = np.nan
+    return true_rul
+
+
+def rul_figure(run: ChainRun, chain: PHMChain, scenario: Scenario | None, results: dict) -> Any:
+    """RUL predictions over time against the truth, with the alpha = 0.2 cone (dashed).
+
+    With the chain's per-part health (``HealthStatus.parts``): every component's RUL (points) and interval (shaded)
+    from results' "components", each in its own colour and marker, and the true RUL of each faulty part in its colour.
+    Without it, the estimator's predictions per parameter they were made for and the true RUL of the fault.
+    The y axis is [0, 2 x the largest finite true RUL] (2 x the 90th percentile of the predictions without truth);
+    predictions beyond it are drawn at its edge (:func:`plot_within`)."""
     fig, ax = plt.subplots(figsize=(10, 5))
     end = float(run.t[-1])
     tt = np.linspace(0.0, end, 2401)
+    joint = joint_results(results)
+    faulty = [] if scenario is None else [name for name in scenario.faulty_parameters if name in chain.degradable]
+    # the estimator's own predictions are about its suspect: its truth is the isolated faulty part's, or the first one's
+    truths = faulty if joint else [results["isolated_parameter"]] if results["isolated_parameter"] in faulty else faulty[:1]
     top = None
-    fault = faulty_parameter(scenario)
-    fault_spec = fault_of(scenario)
-    if scenario is not None and fault_spec is not None and fault is not None:
-        true_eol = fault_spec.profile.trend_end_of_life(tt, truth_limits(scenario, fault))
-        true_rul = np.where(np.isfinite(true_eol), true_eol - tt, np.nan)
-        # break the line where the true EoL jumps (a new segment)
-        jumps = np.flatnonzero(np.abs(np.diff(np.nan_to_num(true_eol, posinf=1e300))) > 1e-6) + 1
-        true_rul[jumps] = np.nan
+    for name, true_rul in ([] if scenario is None else [(name, _true_rul(scenario, name, tt)) for name in truths]):
         if np.isfinite(true_rul).any():
-            ax.plot(tt, true_rul, color="k", lw=1.5, label=f"true RUL of {fault} (trend of the profile)")
-            ax.plot(tt, (1 - ALPHA) * true_rul, color="k", lw=0.9, ls="--", label=f"alpha = {ALPHA:g} cone")
-            ax.plot(tt, (1 + ALPHA) * true_rul, color="k", lw=0.9, ls="--")
-            top = 2.0 * float(np.nanmax(true_rul))
-    if predictions:
-        t = np.array([p["t"] for p in predictions])
-        rul = np.array([p["rul"] for p in predictions])
-        if top is None:
-            top = 2.0 * float(np.percentile(rul, 90)) if np.any(rul > 0) else 1.0
-        _draw_rul_predictions(ax, chain, predictions, t, rul, top, fault)
+            color = component_style(chain, name)[0] if joint else "k"
+            ax.plot(tt, true_rul, color=color, lw=1.5, label=f"true RUL of {name} (trend of the profile)")
+            ax.plot(tt, (1 - ALPHA) * true_rul, color=color, lw=0.9, ls="--", label=f"alpha = {ALPHA:g} cone of {name}")
+            ax.plot(tt, (1 + ALPHA) * true_rul, color=color, lw=0.9, ls="--")
+            top = max(top or 0.0, 2.0 * float(np.nanmax(true_rul)))
+    if joint:
+        top = _draw_component_ruls(ax, chain, results, top)
+    else:
+        predictions = results["eol_predictions"]
+        if predictions:
+            t = np.array([p["t"] for p in predictions])
+            rul = np.array([p["rul"] for p in predictions])
+            if top is None:
+                top = 2.0 * float(np.percentile(rul, 90)) if np.any(rul > 0) else 1.0
+            _draw_rul_predictions(ax, chain, predictions, t, rul, top, truths[0] if truths else None)
     if top is None or not math.isfinite(top) or top <= 0:
         top = 1.0
-    _mark_events(ax, results, scenario)
+    mark_events(ax, results, scenario)
     ax.set_ylim(0, top)
     ax.set_xlim(0, end)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("RUL (s)")
-    ax.set_title("Remaining Useful Life")
+    ax.set_title("Remaining Useful Life of every component" if joint else "Remaining Useful Life")
     ax.grid(alpha=0.3)
     if ax.get_legend_handles_labels()[0]:  # no truth, no alarm: nothing drawn
         ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
     else:
         ax.text(0.5, 0.5, "no End of Life predicted", ha="center", transform=ax.transAxes)
     fig.tight_layout()
-    return save_figure(fig, path)
+    return fig
+
+
+def _draw_component_ruls(ax: Any, chain: PHMChain, results: dict, top: float | None) -> float | None:
+    """Every component's RUL points and interval in its own colour and marker; returns the y axis's top (s), set from
+    the predictions (2 x their 90th percentile) where ``top`` is None and there are any."""
+    big = 1e9
+    drawn = {}
+    for name, series in results["components"].items():
+        t = np.asarray(series["t"], dtype=float)
+        rul = np.array([np.nan if v is None else v for v in series["rul"]], dtype=float)
+        if np.isfinite(rul).any():
+            drawn[name] = (t, rul, series)
+    if top is None and drawn:
+        finite = np.concatenate([rul[np.isfinite(rul)] for _, rul, _ in drawn.values()])
+        top = 2.0 * float(np.percentile(finite, 90)) if np.any(finite > 0) else 1.0
+    if top is None:
+        return None
+    for name, (t, rul, series) in drawn.items():
+        color, marker = component_style(chain, name)
+        low = np.array([big if v is None else v for v in series["rul_low"]], dtype=float)
+        high = np.array([big if v is None else v for v in series["rul_high"]], dtype=float)
+        predicted = np.isfinite(rul)
+        ax.fill_between(t, np.clip(low, -top, 10 * top), np.clip(high, -top, 10 * top), where=predicted, color=color, alpha=0.2, lw=0,
+                        label=f"{results['run']['rul_interval']:.0%} interval of {name}")
+        plot_within(ax, t[predicted], rul[predicted], 0.0, top, color=color, marker=marker, size=3.0, label=f"predicted RUL of {name}")
+    return top
 
 
 def _draw_rul_predictions(ax: Any, chain: PHMChain, predictions: list[dict], t: np.ndarray, rul: np.ndarray, top: float,
@@ -392,7 +313,7 @@ def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path
         ax = fig.add_subplot(grid[e // columns, e % columns])
         ax.plot(t, reference[:, e], color="k", lw=1.0, label="reference")
         ax.plot(t, ea[:, e], color="tab:blue", lw=1.0, alpha=0.8, label="measured")
-        _mark_events(ax, results, scenario, label=False)
+        mark_events(ax, results, scenario, label=False)
         ax.set_title(f"EA of {name} per {chain.config.timing.step:g} s step", fontsize=10)
         ax.set_ylabel("EA (J)")
         ax.grid(alpha=0.3)
@@ -404,7 +325,7 @@ def plot_signals(run: ChainRun, chain: PHMChain, scenario: Scenario | None, path
     for e, name in enumerate(chain.statistic_names):
         ax.semilogy(t, np.maximum(statistic[:, e], floor), lw=1.0, label=name)
     ax.axhline(1.0, color="k", lw=1.4, label="threshold")
-    _mark_events(ax, results, scenario)
+    mark_events(ax, results, scenario)
     ax.set_ylim(floor, max(10.0, float(np.nanmax(statistic)) * 2 if statistic.size else 10.0))
     ax.set_xlabel("time (s)")
     ax.set_ylabel("|relative residual| / threshold")

@@ -16,7 +16,7 @@ import numpy as np
 from ea_gym.files import staged_output, write_json, write_text
 from ea_gym.phm import ChainRun, PHMChain
 from ea_gym.reporting.figures import FIGURES, PLOTS, RECORDED_CAPTIONS, TRUTH_FIGURES
-from ea_gym.reporting.results import ALPHA, LAMBDA, chain_results
+from ea_gym.reporting.results import ALPHA, LAMBDA, RunInputs, chain_results
 from ea_gym.scenario import Scenario
 
 
@@ -82,11 +82,66 @@ def fit_text(results: dict) -> str:
             "check the load column's unit, the time column's sample rate and each C element's form")
 
 
+def degrading_text(results: dict) -> str:
+    """The parts judged degrading at the end in one line (results' "degrading")."""
+    named = results.get("degrading") or []
+    return f"degrading parts: {', '.join(named)}" if named else "degrading parts: none"
+
+
+def component_text(series: dict) -> str:
+    """A component at the end of the run in one line: its estimate (with its std and position in its safe range), its
+    degrading probability, and its RUL with the interval (results' "components")."""
+    value, std = series["value"][-1], series["std"][-1]
+    unit = f" {series['unit']}" if series.get("unit") else ""
+    lower, upper = series["limits"]
+    if value is None:
+        estimate = "no estimate"
+    else:
+        spread = f" +- {_fmt(std, 3)}" if std is not None else ""
+        estimate = f"{_fmt(value)}{spread}{unit} ({(value - lower) / (upper - lower):.0%} of its safe range {lower:g}-{upper:g}{unit})"
+    probability = series["degrading"][-1]
+    if probability is None:
+        degrading = "degrading not estimated (the chain runs without its joint filter)"
+    else:
+        degrading = f"degrading with probability {probability:.2f}" + (" (named)" if series["named"][-1] else "")
+    rul, low, high = series["rul"][-1], series["rul_low"][-1], series["rul_high"][-1]
+    remaining = "no End of Life" if rul is None else f"RUL {_fmt(rul)} s [{_fmt(low)}, {_fmt(high)}]"
+    return f"{estimate}; {degrading}; {remaining}"
+
+
+def _component_rows(results: dict) -> list[tuple[str, str]]:
+    """One row per component at the end of the run."""
+    confidence = results.get("run", {}).get("rul_interval")
+    interval = f" and its {confidence:.0%} interval" if confidence is not None else " and its interval"
+    return [(f"{name} at {series['t'][-1]:g} s: estimate, degrading probability, RUL{interval}", component_text(series))
+            for name, series in (results.get("components") or {}).items() if series["t"]]
+
+
+def _input_rows(results: dict) -> list[tuple[str, str]]:
+    """The noise levels the chain ran with and where they came from, and the commissioned machine."""
+    run = results.get("run", {})
+    rows = []
+    if "noise" in run:
+        estimate = f"; the record's estimate {run['noise_estimate']:.2%}" if run.get("noise_estimate") is not None else ""
+        rows.append(("sensor noise (of each signal's RMS)", f"{run['noise']:.2%} ({run.get('noise_source', '-')}{estimate})"))
+    if "load_noise" in run:
+        rows.append(("load noise (of the load's RMS)", f"{run['load_noise']:.2%} ({run.get('load_noise_source', '-')})"))
+    commissioning = results.get("commissioning")
+    if commissioning:
+        values = ", ".join(f"{name} {_fmt(value)}" + (f" +- {_fmt(commissioning['std'][name], 2)}" if commissioning["std"][name] is not None else "")
+                           for name, value in commissioning["values"].items())
+        rows.append(("healthy machine (commissioned)", f"{values} (from {commissioning['source']})"))
+    return rows
+
+
 def _summary_rows(results: dict) -> list[tuple[str, str]]:
     measurements = results.get("run", {}).get("measurements")
     rows = [("recorded measurements (truth unknown: no errors against it)", str(measurements))] if measurements else []
     rows += [
         ("model fit", fit_text(results)),
+        ("degrading parts (named at the end)", ", ".join(results.get("degrading") or []) or "none"),
+        *_component_rows(results),
+        *_input_rows(results),
         ("detection time (s)", _fmt(results.get("detection_time"))),
         ("isolated parameter", isolation_text(results)),
         ("class probabilities (the chain's belief at the end, which isolates)", _probabilities(results.get("class_probabilities", {}))),
@@ -146,10 +201,47 @@ def _phase_table(phases: list[dict]) -> list[str]:
     return lines
 
 
+def _percent(value: float | None) -> str:
+    return "-" if value is None else f"{value:.0%}"
+
+
+def _parts_table(metrics: dict) -> list[str]:
+    """Every faulty part's metrics (results' metrics "parts") and how often the set was named exactly."""
+    lines = [
+        "| part | onset (s) | estimate error median / max | named right | RUL interval covers the truth (predicted) "
+        "| alpha-lambda (fault phase) |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name, part in metrics["parts"].items():
+        estimation = part.get("estimation")
+        error = f"{estimation['median']:.3g} / {estimation['max']:.3g}" if estimation else "-"
+        coverage = part["rul_coverage"]
+        covered = f"{_percent(coverage['fraction'])} ({_percent(coverage['predicted'])}) of {coverage['steps']} steps"
+        phase = part.get("eol_fault_phase")
+        passed = "-" if not phase or "alpha_lambda" not in phase["prognostics"] else _fmt(phase["prognostics"]["alpha_lambda"]["passed"])
+        lines.append(f"| {name} | {_fmt(part['onset'])} | {error} | {_percent(part['named'])} | {covered} | {passed} |")
+    scored = metrics.get("degrading_set")
+    if scored:
+        lines += ["", f"The set of degrading parts was named exactly in {scored['exact']:.0%} of the {scored['steps']} steps "
+                  f"scored (from {scored['settling']:g} s after the first onset and after every part's last change)."]
+    return lines
+
+
 def _report_text(out: Path, results: dict, figures: dict[str, Path], title: str, sections: list[str] | None) -> str:
     lines = [f"# {title}", "", "## Summary", "", "| quantity | value |", "|---|---|"]
     lines += [f"| {name} | {value} |" for name, value in _summary_rows(results)]
     metrics = results.get("metrics") or {}
+    if metrics.get("parts"):
+        lines += [
+            "",
+            "## Every faulty part",
+            "",
+            ("Each part's estimate against its profile from the estimation start, whether it was named degrading exactly "
+             "when it was and whether its RUL interval held the true RUL (a step without one counts as a miss), from "
+             "30 s after its onset; alpha-lambda of its End-of-Life predictions in its fault phase."),
+            "",
+            *_parts_table(metrics),
+        ]
     if "eol_phases" in metrics:
         lines += [
             "",
@@ -183,16 +275,19 @@ def write_phm_report(out: Path, results: dict, figures: dict[str, Path], title: 
 
 
 def write_phm_outputs(out: Path, run: ChainRun, chain: PHMChain, scenario: Scenario | None, title: str,
-                      sections: list[str] | None = None, measurements: str | None = None) -> dict:
+                      sections: list[str] | None = None, measurements: str | None = None, inputs: RunInputs | None = None) -> dict:
     """Results, figures and report of a run in ``out``: ``results.json``, ``report.md`` and the PNGs of
     :data:`FIGURES`. ``scenario`` None: a run of recorded ``measurements`` (their file), whose truth is
     unknown: no metrics and none of the :data:`TRUTH_FIGURES`.
+
+    ``inputs``: where the noise levels and the healthy machine came from (:class:`~ea_gym.reporting.results.RunInputs`;
+    None: the scenario's).
 
     Everything is drawn in a temporary directory beside ``out`` and moved in only when all of it
     succeeded; ``results.json`` is written last, so its presence means the directory is complete.
     Returns the results.
     """
-    results = chain_results(run, chain, scenario, measurements)
+    results = chain_results(run, chain, scenario, measurements, RunInputs() if inputs is None else inputs)
     with staged_output(out, last="results.json") as staging:
         figures = {}
         for name, plot in PLOTS.items():
