@@ -108,3 +108,9 @@ def test_estimate_errors_count_from_10_s_after_the_first_onset() -> None:
     assert len(errors["m"]) == 21  # 30..50 s
     np.testing.assert_allclose(errors["m"], 0.01 * (np.arange(30.0, 51.0) - 20.0))
     np.testing.assert_allclose(errors["k"], 0.0)
+
+
+def test_a_part_is_named_from_the_naming_probability_until_it_falls_below_the_release() -> None:
+    probability = np.array([[0.1, 0.95], [0.92, 0.6], [0.7, 0.49], [0.4, 0.5], [0.9, 0.91]])
+    named = part_tracks.hysteresis(probability, name=0.9, release=0.5)
+    assert named.tolist() == [[False, True], [True, True], [True, False], [False, False], [True, True]]

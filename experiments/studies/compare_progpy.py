@@ -71,7 +71,16 @@ from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
 from experiments.common import parse_with_smoke
-from experiments.studies.part_tracks import PartTrack, alpha_hits, chain_run, interval_hits, prediction_mask, wear_scores, wear_summary
+from experiments.studies.part_tracks import (
+    PartTrack,
+    alpha_hits,
+    chain_run,
+    hysteresis,
+    interval_hits,
+    prediction_mask,
+    wear_scores,
+    wear_summary,
+)
 from experiments.studies.records import NOISE, Record, case_record, system_model
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
@@ -372,8 +381,9 @@ def recorded_signals(record: Record) -> Signals:
 
 def ukf_track(record: Record, settings: FilterSettings) -> PartTrack:
     """ProgPy's UKF with every part of the spring-mass-damper and its drift as states, on an independent record, read as the
-    chain's per-part outputs: named where P(|drift| > ``JointFilterConfig.degrading_rate`` x the safe span per s) >= 0.5 (the
-    joint filter's rule), End of Life the drift's crossing (``drift_rul``: Fieller's interval) where named."""
+    chain's per-part outputs by the chain's rules: P(degrading) = P(|drift| > ``JointFilterConfig.degrading_rate`` x the
+    safe span per s), named from ``name_probability`` until below ``release_probability``; End of Life the drift's crossing
+    (``drift_rul``: Fieller's interval) where named."""
     system = system_model(record.machine.system)
     parts = tuple(system.safe_limits)
     filtered = run_ukf(system, recorded_signals(record), NOISE, parts, settings)
@@ -382,8 +392,9 @@ def ukf_track(record: Record, settings: FilterSettings) -> PartTrack:
     variance = filtered.covariance[:, slots, slots]
     drift_variance = filtered.covariance[:, [s + 1 for s in slots], [s + 1 for s in slots]]
     limits = np.array([system.safe_limits[name] for name in parts])
-    degrading = degrading_probability(drift, drift_variance, JointFilterConfig().degrading_rate * (limits[:, 1] - limits[:, 0]))
-    named = degrading >= 0.5
+    rules = JointFilterConfig()
+    degrading = degrading_probability(drift, drift_variance, rules.degrading_rate * (limits[:, 1] - limits[:, 0]))
+    named = hysteresis(degrading, rules.name_probability, rules.release_probability)
     ends = np.full((3,) + value.shape, np.inf)
     for s, j in zip(*np.nonzero(named)):
         pair = filtered.covariance[s][np.ix_([slots[j], slots[j] + 1], [slots[j], slots[j] + 1])]

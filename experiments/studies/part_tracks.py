@@ -2,7 +2,8 @@
 
 A :class:`PartTrack` holds, at the end of every 1 s step, each degradable part's estimate, its std, its
 probability of degrading, whether it is named degrading, and its End of Life with the 95 % interval; and the
-machine's alarm, isolated class and model-fit verdict. :func:`chain_track` reads it off the chain's statuses.
+machine's alarm, isolated class and model-fit verdict. :func:`chain_track` reads it off the chain's statuses
+(``HealthStatus.parts``), :func:`chain_run` runs the chain on a record as ``ea-gym phm --measurements`` does.
 
 Scores, against the record's machine (``experiments/studies/records.py``):
 
@@ -20,20 +21,19 @@ Scores, against the record's machine (``experiments/studies/records.py``):
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from ea_gym.models import SystemModel
-from ea_gym.phm import HealthStatus, PHMChain, build_chain, chain_config, classifier_for, drift_end_of_life, run_measurements
+from ea_gym.phm import HealthStatus, PHMChain, build_chain, chain_config, classifier_for, commission, run_measurements
 from experiments.studies.records import NOISE, Machine, Record, system_model
 
 SETTLE = 10.0  # s after the first onset from which estimate errors count
 SET_SETTLE = 30.0  # s after an onset before the named set is expected to hold it
 ALPHA = 0.2
 PREDICTION_SPAN = (0.5, 0.9)  # of the way from onset to End of Life
-CONFIDENCE = 0.95
 
 
 @dataclass(frozen=True)
@@ -68,48 +68,51 @@ class PartTrack:
 
 
 def chain_track(chain: PHMChain, statuses: Sequence[HealthStatus]) -> PartTrack:
-    """The per-part outputs of a one-system chain's ``statuses``.
+    """The per-part outputs (``HealthStatus.parts``) of a one-system chain's ``statuses``."""
+    parts = [s.parts for s in statuses]
+    if not parts or any(p is None for p in parts):
+        raise ValueError("chain_track: the chain gives no per-part health (its joint filter is off: JointFilterConfig.beside)")
 
-    The chain's per-part outputs are read off its joint filter's estimates: a part is named where its degrading
-    probability is at least 0.5 while the model is known to fit, and its End of Life is its value and drift carried
-    to the limit they head for (``ea_gym.phm.drift_end_of_life``, the filter's random walk going on) where named.
-    """
-    if not statuses or statuses[0].estimation.degrading is None:
-        raise ValueError("chain_track: the chain must run the joint filter (estimator_kind 'joint')")
-    parts = chain.degradable
-    t = np.array([s.t[0] for s in statuses])
-    value = np.array([s.estimation.value[0] for s in statuses])
-    variance = np.array([s.estimation.variance[0] for s in statuses])
-    drift = np.array([s.estimation.drift[0] for s in statuses])
-    covariance = np.empty(value.shape + (2, 2))
-    covariance[..., 0, 0] = variance
-    covariance[..., 0, 1] = covariance[..., 1, 0] = np.array([s.estimation.covariance[0] for s in statuses])
-    covariance[..., 1, 1] = np.array([s.estimation.drift_variance[0] for s in statuses])
-    degrading = np.array([s.estimation.degrading[0] for s in statuses])  # type: ignore[index]
-    fits = np.array([s.model_fit is not None and bool(s.model_fit.fits[0]) for s in statuses])
-    misfit = np.array([s.model_fit is not None and bool(s.model_fit.misfit[0]) for s in statuses])
-    named = (degrading >= 0.5) & fits[:, None]
-    limits = np.array([chain.model.safe_limits[name] for name in parts])
-    diffusion = getattr(chain.estimator, "diffusion", 0.0)
-    ends = drift_end_of_life(value, drift, covariance, np.broadcast_to(limits, value.shape + (2,)), t[:, None], CONFIDENCE, diffusion)
-    eol, eol_low, eol_high = (np.where(named, end, np.inf) for end in ends)
+    def column(name: str) -> np.ndarray:
+        return np.array([getattr(p, name)[0] for p in parts])
+
     return PartTrack(
-        t=t, parts=parts, value=value, std=np.sqrt(variance), degrading=degrading, named=named, eol=eol, eol_low=eol_low, eol_high=eol_high,
+        t=np.array([s.t[0] for s in statuses]), parts=chain.degradable, value=column("value"), std=column("std"), degrading=column("degrading"),
+        named=column("named"), eol=column("eol"), eol_low=column("eol_low"), eol_high=column("eol_high"),
         alarm=np.array([bool(s.alarm[0]) for s in statuses]), isolated=np.array([int(s.isolated[0]) - 1 for s in statuses]),
-        fits=fits, misfit=misfit, machine_eol=np.array([s.eol[0] for s in statuses]),
+        fits=np.array([s.model_fit is not None and bool(s.model_fit.fits[0]) for s in statuses]),
+        misfit=np.array([s.model_fit is not None and bool(s.model_fit.misfit[0]) for s in statuses]),
+        machine_eol=np.array([s.eol[0] for s in statuses]),
     )
 
 
 def chain_run(record: Record, model: SystemModel | None = None, classifier: str | None = None, load_noise: float = 0.0,
               commissioning: Record | None = None) -> PartTrack:
-    """The chain on ``record``'s measurements as ``ea-gym phm --measurements`` runs it (``chain_config`` at the record's rate and
-    the known 1 % noise, the isolation network of ``classifier_for``; ``model`` and ``classifier`` default to the record's
-    system's), told the load column's noise ``load_noise`` and commissioned on ``commissioning``'s healthy record where given."""
+    """The chain on ``record``'s measurements as ``ea-gym phm --measurements REC --noise 0.01 --load-noise L --commission HEALTHY``
+    runs it: ``chain_config`` at the record's rate, the known 1 % sensor noise and ``load_noise``, the isolation network of
+    ``classifier_for`` (``model`` and ``classifier`` default to the record's system's), commissioned on the healthy record
+    ``commissioning`` (``ea_gym.phm.commission``, ``PHMChain.commission``) where given."""
     model = model or system_model(record.machine.system)
-    del load_noise, commissioning  # the chain takes neither yet
-    config = replace(chain_config(record.measurements.sample_rate, NOISE), estimator_kind="joint")
+    measurements = record.measurements
+    config = chain_config(measurements.sample_rate, NOISE, load_noise)
     chain = build_chain(model, config, classifier_for(model, classifier), np.random.default_rng(0))
-    return chain_track(chain, run_measurements(chain, record.measurements).statuses)
+    if commissioning is not None:
+        healthy = commissioning.measurements
+        load_rate = np.gradient(healthy.load, healthy.sample_period)  # as the chain's stream takes it
+        fitted = commission(model, healthy.signals.T[None], healthy.load[None], load_rate[None], healthy.sample_rate, NOISE, load_noise)
+        chain.commission(fitted.value)
+    return chain_track(chain, run_measurements(chain, measurements).statuses)
+
+
+def hysteresis(probability: np.ndarray, name: float, release: float) -> np.ndarray:
+    """Named (S, D) from each step's probabilities of degrading (S, D): from the step one reaches ``name`` until it falls below
+    ``release`` (the chain's rule, ``JointFilterConfig.name_probability`` and ``release_probability``)."""
+    named = np.zeros(probability.shape, dtype=bool)
+    state = np.zeros(probability.shape[1], dtype=bool)
+    for s, p in enumerate(probability):
+        state = (p >= name) | (state & (p >= release))
+        named[s] = state
+    return named
 
 
 def truth(machine: Machine, track: PartTrack) -> np.ndarray:
