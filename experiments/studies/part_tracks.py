@@ -15,7 +15,8 @@ Scores, against the record's machine (``experiments/studies/records.py``):
 * prognosis (:func:`prognosis_hits`): every prediction of a wearing part from 50 to 90 % of the way from its
   onset to its End of Life (the time it reaches its safe limit): within +-20 % of the true RUL (alpha-lambda),
   and whether its 95 % interval is bounded and covers the true RUL; a missing prediction misses both;
-* false alarms (:func:`first_alarm`): the first step with the detector's alarm, a part named, or an End of Life.
+* false alarms (:func:`first_alarm`, :func:`raised_by`): the first step with the detector's alarm, a part named, or an
+  End of Life, and which of them.
 """
 
 from __future__ import annotations
@@ -175,10 +176,29 @@ def prognosis_hits(track: PartTrack, machine: Machine) -> dict[str, tuple[np.nda
     return hits
 
 
+def raised(track: PartTrack) -> np.ndarray:
+    """Whether each step has the detector's alarm, a part named or an End of Life (a part's or the machine's), (S,)."""
+    return np.asarray(track.alarm | track.named.any(axis=1) | np.isfinite(track.eol).any(axis=1) | np.isfinite(track.machine_eol))
+
+
 def first_alarm(track: PartTrack) -> float:
     """When (s) the track first raised the alarm, named a part or gave an End of Life; inf if never."""
-    raised = track.alarm | track.named.any(axis=1) | np.isfinite(track.eol).any(axis=1) | np.isfinite(track.machine_eol)
-    return float(track.t[np.argmax(raised)]) if raised.any() else np.inf
+    steps = raised(track)
+    return float(track.t[np.argmax(steps)]) if steps.any() else np.inf
+
+
+def raised_by(track: PartTrack) -> str:
+    """What the track raised first: "detector alarm", "named" and the parts, "End of Life" (joined by " + "); "" if nothing."""
+    steps = raised(track)
+    if not steps.any():
+        return ""
+    k = int(np.argmax(steps))
+    what = ["detector alarm"] if track.alarm[k] else []
+    if track.named[k].any():
+        what.append("named " + ", ".join(part for part, named in zip(track.parts, track.named[k]) if named))
+    if np.isfinite(track.eol[k]).any() or np.isfinite(track.machine_eol[k]):
+        what.append("End of Life")
+    return " + ".join(what)
 
 
 def wear_scores(track: PartTrack, machine: Machine) -> dict[str, Any]:
@@ -188,7 +208,7 @@ def wear_scores(track: PartTrack, machine: Machine) -> dict[str, Any]:
     return {
         "set_right": set_named_right(track, machine), "errors": estimate_errors(track, machine),
         "alpha": {part: h[0] for part, h in hits.items()}, "covered": {part: h[1] for part, h in hits.items()},
-        "first_alarm": first_alarm(track),
+        "first_alarm": first_alarm(track), "raised_by": raised_by(track),
     }
 
 
