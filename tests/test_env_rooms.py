@@ -21,7 +21,7 @@ from ea_gym.env.events import (
     parse_event,
 )
 from ea_gym.env.observations import OBSERVATION_BOUND, PARAMETER_POSITION_BOUNDS
-from ea_gym.phm import ChainTiming, IsolationConfig, ModelFitConfig, PHMConfig
+from ea_gym.phm import ChainTiming, IsolationConfig, JointFilterConfig, ModelFitConfig, PHMConfig
 
 ENV_ID = "ea_gym/SpringMassDamper-v0"
 
@@ -62,10 +62,16 @@ def test_env_config_overrides_and_phm_settings():
         env_config(base, speed=2)
     chain = EnvConfig(step_seconds=5.0, window_seconds=1.0, noise=0.02).phm_config
     no_fit = ModelFitConfig(enabled=False)  # the v0 environments run without the model-fit test
-    assert chain == PHMConfig(timing=ChainTiming(step=1.0, step_time=5.0, sample_rate=100.0, noise=0.02), fit=no_fit)
+    alone = JointFilterConfig(beside=False)  # and without a joint filter beside their estimator
+    timing = ChainTiming(step=1.0, step_time=5.0, sample_rate=100.0, noise=0.02)
+    assert chain == PHMConfig(timing=timing, fit=no_fit, joint=alone)
     custom = EnvConfig(phm=PHMConfig(isolation=IsolationConfig(frame=10.0), timing=ChainTiming(noise=0.5))).phm_config
     assert custom.isolation.frame == 10.0 and custom.timing.noise == 0.01  # the env's noise is the chain's
-    assert custom.fit == no_fit
+    assert custom.fit == no_fit and custom.joint == alone
+    # where every part ages: the joint filter, the model-fit test on, the settings given kept
+    every = EnvConfig(step_seconds=5.0, window_seconds=1.0, noise=0.02, concurrent_wear=True)
+    assert every.phm_config == PHMConfig(timing=timing, estimator_kind="joint")
+    assert dataclasses.replace(every, phm=PHMConfig(isolation=IsolationConfig(frame=10.0))).phm_config.estimator_kind == "tracking"
 
 
 def test_a_config_and_its_keywords_give_the_same_episode():

@@ -105,11 +105,15 @@ def check_benchmark_policies(out: Path, stdout: str) -> None:
 
 
 def check_bench_throughput(out: Path, stdout: str) -> None:
-    regimes = read_json(out / "throughput.json")["regimes"]
-    assert set(regimes) == {"healthy", "alarm", "ppo"}
+    result = read_json(out / "throughput.json")
+    regimes = result["regimes"]
+    assert set(regimes) == {"healthy", "alarm", "ppo", "v1"}
     for rows in regimes.values():
         assert set(rows) == {"1", "2"} and {"batched", "sync", "single"} <= set(rows["1"])
         assert all(run["env_steps_per_s"] > 0 for row in rows.values() for run in row.values())
+    ratios = result["v1_over_alarm"]  # v1 beside v0 in alarm, the comparison
+    rate = {regime: regimes[regime]["2"]["batched"]["env_steps_per_s"] for regime in ("v1", "alarm")}
+    assert set(ratios) == {"1", "2"} and ratios["2"] == rate["v1"] / rate["alarm"]
 
 
 def check_bench_simulation(out: Path, stdout: str) -> None:
@@ -187,6 +191,15 @@ def check_model_fit(out: Path, stdout: str) -> None:
     assert all(run["passed"] for run in result["runs"])  # the healthy record fits, each misfit is said so
     assert [row["scenario"] for row in result["scenarios"]] == ["mass_m_ramp"] and result["scenarios"][0]["on"]["ok"] is True
     assert (out / "table.md").is_file()
+
+
+def check_v1_rul(out: Path, stdout: str) -> None:
+    result = read_json(out / "results.json")
+    assert result["env"] == "ea_gym/SpringMassDamper-v1" and list(result["faults"]) == ["k", "m", "b"]
+    # the smoke's faults arrive at once in every part: each is counted past half-way in both episodes
+    assert all(m["episodes"] == 2 and m["steps"] > 0 for m in result["faults"].values())
+    assert result["pooled"]["steps"] == sum(m["steps"] for m in result["faults"].values())
+    assert "| pooled |" in (out / "table.md").read_text() and (out / "rul.png").is_file()
 
 
 def check_rllib_ppo(out: Path, stdout: str) -> None:
@@ -267,6 +280,7 @@ RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "studies/model_fit.py": (("--out", "OUT"), check_model_fit),
     "studies/real_machines.py": (("--out", "OUT"), check_real_machines),
     "studies/tracking_accuracy.py": ((), printed("N =   1 systems", "N =   4 systems")),
+    "studies/v1_rul.py": (("--out", "OUT"), check_v1_rul),
 }
 
 

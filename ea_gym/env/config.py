@@ -13,6 +13,7 @@ from ea_gym.degradation import WearConfig
 from ea_gym.env.costs import CostModel
 from ea_gym.numerics import MAX_SAMPLES
 from ea_gym.phm import ChainTiming, ModelFitConfig, PHMConfig
+from ea_gym.phm.commissioning import COMMISSIONING_STEP
 
 OBS_MODES = ("phm", "sensors", "oracle")
 #: longest degradation time of one step (s, about 116 days): the wear laws integrate over it in one go
@@ -59,9 +60,27 @@ class EnvConfig:
         load_std: range (low, high) of the random loads' std, fraction of
             ``SystemModel.random_load_scale`` (the nominal load unless the model gives a scale).
         phm: the PHM chain's own settings (isolation, detection, estimation, prognosis); its timing
-            (window, clock, sample rate and noise) is the environment's (``phm_config``), and it runs
-            without the model-fit test (``PHMConfig.fit``) and without a joint filter beside its estimator
-            (``JointFilterConfig.beside``): these environments' episodes stay as they were. None: the defaults.
+            (window, clock, sample rate and noise) is the environment's (``phm_config``). With one fault per
+            system it runs without the model-fit test (``PHMConfig.fit``) and without a joint filter beside its
+            estimator (``JointFilterConfig.beside``): the v0 environments' episodes stay as they were. None: the
+            defaults; where every part ages, with the joint filter (``estimator_kind="joint"``), which estimates
+            every part at once.
+        concurrent_wear: every wearing component has its own wear process (kind from its WearConfig;
+            direction, arrival and rate drawn per part), so that faults overlap, instead of one fault per
+            episode; the observation then gives every part's RUL and degrading probability (the v1
+            environments' world, ``ea_gym.degradation.PartsWear``).
+        background_wear: with ``concurrent_wear``, every wearing part also ages slowly from its
+            installation on, in its fault's direction: this fraction of the distance from nominal to the
+            limit per second (the v1 environments: 2e-4, so that a part needs 5000 s, ten default
+            horizons, to reach its limit by background ageing alone).
+        tolerance: with ``concurrent_wear``, each wearing part starts (at a reset and when replaced) from
+            a value drawn uniformly within nominal +- this fraction of its safe span (the v1
+            environments: 1/8, the middle half of the range for a nominal in its middle).
+        commission_seconds: with ``concurrent_wear``, each machine runs this long healthy at its reset and after
+            a replacement (before any wear: the degradation clock stands still), and its parts' own values are
+            fitted from that record (``ea_gym.phm.commission``): its reference model is simulated with them and
+            the chain compares the machine with itself, not with the catalogue (``PHMChain.commission``).
+            0: none, the reference at nominal (the v1 environments: 20 s; at least ``COMMISSIONING_STEP``).
     """
 
     step_seconds: float = 1.0
@@ -77,6 +96,10 @@ class EnvConfig:
     rul_max: float = 1000.0
     load_std: tuple[float, float] = (0.2, 0.4)
     phm: PHMConfig | None = None
+    concurrent_wear: bool = False
+    background_wear: float = 0.0
+    tolerance: float = 0.0
+    commission_seconds: float = 0.0
 
     def __post_init__(self) -> None:
         for name in ("step_seconds", "sample_rate", "corrective_rate", "rul_max"):
@@ -110,6 +133,24 @@ class EnvConfig:
             raise ValueError(f"load_std must be a tuple (low, high) of numbers with 0 <= low <= high, got {low_high!r}")
         if self.phm is not None and not isinstance(self.phm, PHMConfig):
             raise TypeError(f"phm must be None or a PHMConfig, got {type(self.phm).__name__}")
+        self._check_world()
+
+    def _check_world(self) -> None:
+        """The settings of the world where every part ages: a bool and numbers >= 0, used only in that world."""
+        if not isinstance(self.concurrent_wear, bool):
+            raise TypeError(f"concurrent_wear must be a bool, got {self.concurrent_wear!r}")
+        for name in ("background_wear", "tolerance", "commission_seconds"):
+            value = getattr(self, name)
+            if not (_is_number(value) and value >= 0):
+                raise ValueError(f"{name} must be a number >= 0, got {value!r}")
+            if value and not self.concurrent_wear:
+                raise ValueError(f"{name} needs concurrent_wear=True (the world where every part ages), got {name}={value!r}")
+        seconds = self.commission_seconds
+        if seconds and not (COMMISSIONING_STEP <= seconds and seconds * self.sample_rate <= MAX_SAMPLES):
+            raise ValueError(
+                f"commission_seconds must be 0 (none) or within [{COMMISSIONING_STEP:g}, {MAX_SAMPLES / self.sample_rate:g}] s "
+                f"(at {self.sample_rate:g} Hz), got {seconds!r}"
+            )
 
     @property
     def window(self) -> float:
@@ -120,6 +161,8 @@ class EnvConfig:
     def phm_config(self) -> PHMConfig:
         """The chain's settings, its timing (window, clock, sample rate and noise) the environment's."""
         timing = ChainTiming(step=self.window, step_time=self.step_seconds, sample_rate=self.sample_rate, noise=self.noise)
+        if self.concurrent_wear:  # the chain as on a real machine: every part estimated at once, the model's fit tested
+            return dataclasses.replace(self.phm or PHMConfig(estimator_kind="joint"), timing=timing)
         phm = self.phm or PHMConfig()
         joint = dataclasses.replace(phm.joint, beside=False)  # no joint filter beside the estimator: v0's episodes stay as they were
         return dataclasses.replace(phm, timing=timing, fit=ModelFitConfig(enabled=False), joint=joint)

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ea_gym._kernels.ledger import close_step, outside_limits, take_orders
-from ea_gym.degradation import Wear, WearConfig
+from ea_gym.degradation import PartsWear, Wear, WearConfig
 from ea_gym.diagnosis.classifier import FaultClassifier
 from ea_gym.diagnosis.database import classes_of
 from ea_gym.diagnosis.monitor import Monitor
@@ -25,9 +25,9 @@ from ea_gym.env.config import EnvConfig
 from ea_gym.env.events import ActionKind, Event, Failure, Replacement, action_table
 from ea_gym.env.infos import StepInfo, cost_items
 from ea_gym.env.observations import Observation, Observer, OracleTruth
-from ea_gym.env.operation import Degradation, Operation
+from ea_gym.env.operation import Degradation, Operation, PartsDegradation
 from ea_gym.models import SystemModel
-from ea_gym.phm import PHMChain, PHMConfig, classifier_for, thresholds_for
+from ea_gym.phm import HealthStatus, PHMChain, PHMConfig, classifier_for, commission, thresholds_for
 from ea_gym.threads import single_threaded_blas
 
 
@@ -77,8 +77,14 @@ class MaintenanceCore:
         self.limits = np.array([model.safe_limits[c] for c in self.components])
         self._low, self._high = self.limits[:, 0].copy(), self.limits[:, 1].copy()
         wear = config.wear if config.wear is not None else {name: WearConfig() for name in self.components}
-        self.degradation = Degradation(model, wear, self.components, n_systems)
+        self.degradation: Degradation | PartsDegradation
+        if config.concurrent_wear:
+            self.degradation = PartsDegradation(model, wear, self.components, n_systems, config.tolerance, config.background_wear)
+            _check_tolerance(self.degradation, config.tolerance)
+        else:
+            self.degradation = Degradation(model, wear, self.components, n_systems)
         self.chain, self.monitor = _supervision(model, config, wear, n_systems, classifier, calibration_seed)
+        self._joint_config = config.phm_config.joint  # what commissioning fits with
         self.elements = self.monitor.elements
         self.rco = self.monitor.components
         self._rco_index = np.array([self.elements.index(c) for c in self.rco])
@@ -87,6 +93,7 @@ class MaintenanceCore:
         self.nominal_parameters = dict(zip(model.parameter_names, map(float, self.nominal)))
         self.safe_limits = {name: tuple(map(float, limits)) for name, limits in model.safe_limits.items()}
         self.observer = Observer(config, n_systems, self.elements, self.rco, self.classes, self.limits, self.nominal[self._component_index])
+        self._rul_columns = self.components if config.concurrent_wear else ()  # what info["true_rul"]'s columns are
         n = n_systems
         self._theta = np.tile(self.nominal, (n, 1))  # true parameter values (N, P)
         self._clock = np.zeros(n)  # degradation time (s)
@@ -122,15 +129,18 @@ class MaintenanceCore:
         return self._theta.copy()
 
     def true_rul(self) -> np.ndarray:
-        """Every system's true remaining useful life (s), (N,)."""
+        """Every system's true remaining useful life (s): (N,) with one fault per system, (N, n) per maintainable
+        component where every part ages (``EnvConfig.concurrent_wear``)."""
         return self.degradation.true_rul(self._theta, self._clock)
 
     def faulty_component(self, i: int) -> str:
-        """The component whose fault system i has (or will have: its arrival may be ahead)."""
+        """The component whose fault system i has (or will have: its arrival may be ahead); one fault per system only."""
+        if isinstance(self.degradation, PartsDegradation):
+            raise ValueError("every part ages (concurrent_wear=True): there is no one faulty component; see true_rul() per part")
         return self.degradation.faulty_component(i)
 
     @property
-    def wear(self) -> Wear:
+    def wear(self) -> Wear | PartsWear:
         """The wear processes of the wearing components."""
         return self.degradation.wear
 
@@ -155,16 +165,18 @@ class MaintenanceCore:
         self._steps[mask] = 0
         self._down[mask] = 0
         self.operation.start(rngs, mask)
-        self.degradation.start(rngs, self._clock, mask)
+        self.degradation.start(rngs, self._clock, mask, self._theta)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask if systems is not None else None)
+        if self._commission(rngs, mask):  # before its first step the chain knows the machine it was commissioned with
+            return self.observe({**self.observer.idle, "estimates": self.operation.reference_parameters[:, self._component_index]})
         return self.observe(self.observer.idle)
 
     def reset_info(self) -> StepInfo:
         """What the systems report after a reset: their true state, no cost, no event."""
-        return StepInfo.at_reset(self.model.parameter_names, self.true_parameters, self.true_rul(), self.cost_items)
+        return StepInfo.at_reset(self.model.parameter_names, self.true_parameters, self.true_rul(), self.cost_items, self._rul_columns)
 
     # -- the step ---------------------------------------------------------------------------------
 
@@ -199,7 +211,7 @@ class MaintenanceCore:
             self._steps, maintained, failed, dt, self.config.horizon, not self.config.continue_after_failure, terminated, truncated,
         )
         observation = self.observe(outputs)
-        info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events)
+        info = StepInfo(self.model.parameter_names, self._theta.copy(), self.true_rul(), costs, failed, events, self._rul_columns)
         return StepResult(observation=observation, reward=-costs["total"], terminated=terminated, truncated=truncated, info=info)
 
     def _maintain(
@@ -255,38 +267,57 @@ class MaintenanceCore:
     def replace(
         self, systems: np.ndarray, components: np.ndarray, downtime: int, rngs: Sequence[np.random.Generator], events: list[list[Event]]
     ) -> None:
-        """Put a new component ``components[k]`` in system ``systems[k]`` (distinct systems): nominal value,
-        downtime, a new fault where it was the faulty one.
+        """Put a new component ``components[k]`` in system ``systems[k]`` (distinct systems), the machine down for
+        ``downtime`` steps: with one fault per system, at nominal, and a new fault where it was the faulty one;
+        where every part ages, within its tolerance with a new wear process.
 
         The systems are reset together; each draws only from its own generator, as when replaced one by one.
         """
         if len(systems) == 0:
             return
         components = np.asarray(components, dtype=int)
-        parameters = self._component_index[components]
-        self._theta[systems, parameters] = self.nominal[parameters]
+        self.degradation.replace(rngs, self._clock, np.asarray(systems), self._component_index[components], self._theta)
         self._down[systems] = downtime
         self.operation.stop(systems)  # the machine is stopped and restarted
         mask = np.zeros(self.n, dtype=bool)
         mask[systems] = True
-        # the faulty one: a new fault is drawn
-        faulty = self.degradation.faulty_parameters()[systems] == parameters
-        if np.any(faulty):
-            fresh = np.zeros(self.n, dtype=bool)
-            fresh[systems[faulty]] = True
-            self.degradation.start(rngs, self._clock, fresh)
         if self.chain is not None:
             self.chain.reset(mask)
         else:
             self.monitor.reset(mask)
+        self._commission(rngs, mask)
         for i, d in zip(systems, components):
             events[i].append(Replacement(self.components[d], downtime))
+
+    def _commission(self, rngs: Sequence[np.random.Generator], systems: np.ndarray) -> bool:
+        """Commission the machines in the boolean mask ``systems`` (``EnvConfig.commission_seconds``; none where it
+        is 0): each runs that long healthy under its own load, its parts' values are fitted from the measured record
+        (``ea_gym.phm.commission``, in every obs_mode: the same draws whatever is observed), and they become its
+        reference model's and, in the "phm" mode, the chain's healthy machine. Returns whether any was."""
+        seconds = self.config.commission_seconds
+        if seconds == 0 or not systems.any():
+            return False
+        rows = np.flatnonzero(systems)
+        window = self.operation.commissioning(rows, self._theta[rows], seconds, rngs)
+        fitted = commission(
+            self.model, window.measured, window.load, window.load_rate, self.config.sample_rate, self.config.noise, config=self._joint_config
+        )
+        if self.chain is not None:
+            self.chain.commission(fitted.value, systems, fitted.std)
+            reference = self.chain.reference_parameters[rows]
+        else:
+            reference = np.tile(self.nominal, (len(rows), 1))
+            reference[:, self._component_index] = fitted.value
+        self.operation.set_reference(rows, reference)
+        return True
 
     def operate(self, rngs: Sequence[np.random.Generator]) -> dict[str, np.ndarray]:
         """Simulate one window of plant and reference, measure, and run the chain or the monitor."""
         window = self.operation.run(self._theta, rngs)
         if self.chain is not None:
             status = self.chain.update(window.measured, window.expected, window.load, window.load_rate)
+            if self.observer.per_part:
+                return {"ea": status.ea, "ea_reference": status.ea_reference, "eai": status.eai, **self._part_outputs(status)}
             return {
                 "ea": status.ea, "ea_reference": status.ea_reference, "eai": status.eai,
                 "diagnosis": status.diagnosis, "estimates": status.estimates, "rul": status.rul,
@@ -296,15 +327,40 @@ class MaintenanceCore:
         eai = component_activity_index(ea, self._rco_index, self.rco)
         return {"ea": ea, "ea_reference": ea_ref, "eai": eai}
 
+    @staticmethod
+    def _part_outputs(status: HealthStatus) -> dict[str, np.ndarray]:
+        """Every part's degrading probability (N, n), joint estimate (N, n, SI) and RUL [point, low, high] (N, n, 3) s
+        (``PartHealth``: inf but for the parts judged degrading)."""
+        if status.parts is None:
+            raise ValueError(
+                "every part ages (concurrent_wear=True): the chain needs its joint filter (estimator_kind 'joint' or JointFilterConfig.beside)"
+            )
+        return {"degrading": status.parts.degrading, "estimates": status.parts.value, "rul": status.parts.rul}
+
     def observe(self, outputs: dict[str, np.ndarray]) -> Observation:
         """Observation arrays of the step's ``outputs``; systems that are down show idle outputs."""
         oracle = None
         if self.config.obs_mode == "oracle":
-            oracle = OracleTruth(
-                values=self._theta[:, self._component_index], diagnosis_class=self.degradation.diagnosis_class(self._clock),
-                rul=self.true_rul(),
-            )
+            values, rul = self._theta[:, self._component_index], self.true_rul()
+            if isinstance(self.degradation, PartsDegradation):
+                oracle = OracleTruth(values=values, diagnosis_class=None, rul=rul, degrading=self.degradation.degrading(self._clock))
+            else:
+                oracle = OracleTruth(values=values, diagnosis_class=self.degradation.diagnosis_class(self._clock), rul=rul)
         return self.observer.observe(outputs, self._since_maintenance, self._down > 0, oracle)
+
+
+def _check_tolerance(degradation: PartsDegradation, tolerance: float) -> None:
+    """A ValueError naming ``tolerance`` where it would start a part on or outside its safe limits."""
+    span = degradation.limits[:, 1] - degradation.limits[:, 0]
+    nominal = degradation.nominal[degradation.parameter_index]
+    low, high = nominal - tolerance * span, nominal + tolerance * span
+    outside = np.flatnonzero((low <= degradation.limits[:, 0]) | (high >= degradation.limits[:, 1]))
+    if len(outside):
+        d = int(outside[0])
+        raise ValueError(
+            f"tolerance {tolerance:g} starts {degradation.components[d]} anywhere in [{low[d]:g}, {high[d]:g}], not inside its safe limits "
+            f"{tuple(map(float, degradation.limits[d]))}"
+        )
 
 
 def chain_settings(model: SystemModel, config: EnvConfig, wear: dict[str, WearConfig]) -> PHMConfig:

@@ -37,6 +37,16 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
     or its replacement. Failure (a parameter outside its safe limits) is expensive; so are downtime,
     replacements and corrective actions.
 
+    In v1 (`ea_gym/SpringMassDamper-v1`, `ea_gym/BondGraphMaintenance-v1`: the settings `V1_SETTINGS` of
+    `ea_gym.env`) every part ages at once, as on a real machine: each part starts from its own value
+    within a tolerance of nominal, ages slowly in the background from the start, and has its own fault
+    (its `WearConfig`'s process, with a direction, arrival and rate drawn per part), so that faults
+    overlap. Each machine is commissioned at its reset (and after a replacement): it runs healthy for a while,
+    its parts' own values are fitted from the record, and the reference model and the chain take them, so the
+    chain compares the machine with itself, not with the catalogue. The chain runs the joint filter (every
+    part's estimate, variance and drift at once) with the model-fit test, and the observation gives every
+    part's degrading probability and RUL.
+
     ## Action Space
 
     `Discrete(1 + 2n)` for the n maintainable components (`env.unwrapped.action_meanings`; the typed
@@ -66,9 +76,19 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
     | `time_since_maintenance` | (1,) | s |
     | `maintenance_in_progress` | (1,) | 1 while the machine is down |
 
+    v1 replaces `diagnosis` (one class) with each part's degrading probability and gives a RUL per part:
+
+    | key | shape | meaning |
+    |---|---|---|
+    | `ea`, `eai`, `residual`, `time_since_maintenance`, `maintenance_in_progress` | as v0 | as v0 |
+    | `degrading` | (n,) | each part's probability of degrading (its drift beyond `JointFilterConfig.degrading_rate` of its safe span per s) |
+    | `parameter_estimate` | (n,) | each part's joint estimate, its position in the safe range, in [-1, 2] |
+    | `rul` | (n, 3) | each part's RUL (s): point, interval low, interval high, clipped to [0, `rul_max`] |
+
     `obs_mode` selects the information regime: `"phm"` (the full chain, above), `"sensors"` (measured
-    signal features only: no `diagnosis`, `parameter_estimate` or `rul`) or `"oracle"` (the same keys
-    as `"phm"`, holding the true faulty component, true parameters and true RUL).
+    signal features only: no `diagnosis`, `degrading`, `parameter_estimate` or `rul`) or `"oracle"` (the
+    same keys as `"phm"`, holding the truth: the faulty component (v1: 1 for each part whose fault has
+    arrived, 0 for the others), the true parameters and the true RUL (v1: each part's)).
 
     ## Rewards
 
@@ -79,6 +99,10 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
 
     All components at nominal, the machine at rest, a new random load (random-phase multisine around
     the nominal load), and a fault drawn: which component, when it arrives, its direction and rate.
+    v1: every wearing part drawn within `tolerance` x its safe span of nominal (uniform; default 1/8),
+    then its own fault (direction, arrival, rate), from the system's generator, part by part; then
+    `commission_seconds` of healthy operation (the load's clock moves on, the wear's does not) from which the
+    machine is commissioned. The first observation's `parameter_estimate` is the commissioned values.
 
     ## Episode End
 
@@ -111,10 +135,25 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
       their order is the action table's.
     - `info_layout`: `"nested"` (the default: the dicts and texts below) or `"flat"` (one level of numbers,
       no events), for libraries that make a tensor of every info (TorchRL's `GymEnv`; `ea_gym.env.infos`).
+    - v1's settings, `EnvConfig` fields like the others (v0 has them off): `concurrent_wear=True` (a wear
+      process per part), `background_wear=2e-4` (every part ages by this fraction of the distance from
+      nominal to its limit per s: 5000 s, ten default horizons, to its limit by background ageing alone,
+      and at most 2e-4 of its safe span per s, below the joint filter's degrading rate, 1.5e-3: ageing,
+      not a fault), `tolerance=0.125` (the parts' starting spread, fraction of the safe span either side
+      of nominal), `commission_seconds=20.0` (the healthy record each machine is commissioned from at a reset
+      and after a replacement: its parts' values to a median 0.1-0.5 % of their spans on the spring-mass-damper;
+      0: none, the reference at nominal).
+
+    `info["true_rul"]` is the true RUL (s) of the fault's mean trend (inf before it arrives); in v1 an
+    array (n,), each part's mean trend (its background ageing, plus its fault once arrived) to its limit.
 
     ## Version History
 
     - v0: first version.
+    - v1: every part ages at once (background ageing, a fault per part, overlapping), parts start within
+      their tolerances, replaced parts too, and each machine is commissioned; the chain runs the joint filter
+      and the model-fit test; the
+      observation's `degrading` (n,) replaces `diagnosis`, `rul` is (n, 3) per part, `info["true_rul"]` (n,).
     """
 
     metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
@@ -187,7 +226,7 @@ class SpringMassDamperEnv(BondGraphMaintenanceEnv):
 
     def __init__(self, **kwargs: Any):
         if "system" in kwargs:
-            raise TypeError("SpringMassDamper-v0 is the spring-mass-damper; use BondGraphMaintenance-v0 for another system")
+            raise TypeError("SpringMassDamper is the spring-mass-damper; use BondGraphMaintenance (same version) for another system")
         super().__init__(system="spring_mass_damper", **kwargs)
 
 

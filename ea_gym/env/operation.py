@@ -1,5 +1,6 @@
 """The machines' operation over arrays of N systems: random loads, plant and fault-free reference
-simulated over a step's window, the sensors, and the wear of the degrading components.
+simulated over a step's window, the sensors, and the wear of the degrading components (one fault per
+system, the v0 world; or every part ageing at once, the v1 world).
 
 System i draws only from its own generator ``rngs[i]``, so that its episode is the same whether it
 is stepped alone or with others.
@@ -13,8 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ea_gym.bondgraph.simulation import MeasuredSimulation
-from ea_gym.degradation import Wear, WearConfig
+from ea_gym.bondgraph.simulation import MeasuredSimulation, simulate_measured
+from ea_gym.degradation import PartsWear, Wear, WearConfig
 from ea_gym.energy import window_samples
 from ea_gym.loads import multisine_rotations, rotated_multisine_into
 from ea_gym.models import SystemModel
@@ -57,10 +58,13 @@ class Loads:
             self.phase[i] = rng.uniform(0.0, 2.0 * math.pi, LOAD_COMPONENTS)
         self.rotation[mask] = multisine_rotations(self.frequency[mask], self.h)
 
-    def signal(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Each system's load and its time derivative at its times ``t`` (N, T)."""
+    def signal(self, t: np.ndarray, systems: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Each system's load and its time derivative at its times ``t`` (N, T); of the ``systems`` (K,) alone
+        where given, ``t`` then (K, T)."""
         load, rate = np.empty(t.shape), np.empty(t.shape)
         phase, rotation, mean, amplitude = self.phase, self.rotation, self.mean, self.amplitude
+        if systems is not None:
+            phase, rotation, mean, amplitude = phase[systems], rotation[systems], mean[systems], amplitude[systems]
 
         def load_rows(start: int, stop: int) -> None:
             rows = slice(start, stop)
@@ -105,7 +109,7 @@ class Operation:
         self.model = model
         self.sensors = Sensors(model)
         self.n = n_systems
-        self.nominal = model.parameter_vector()  # the reference's parameters
+        self.nominal = model.parameter_vector()  # the references' parameters unless set (``set_reference``)
         # plant and reference in one batch: the plants' parameter rows (written each window), then the references'
         self._theta = np.tile(self.nominal, (2 * n_systems, 1))
         self.h = 1.0 / sample_rate
@@ -129,6 +133,17 @@ class Operation:
         """The references' energy variables at the end of the last window, (N, nx)."""
         return self.states[self.n :]
 
+    @property
+    def reference_parameters(self) -> np.ndarray:
+        """The parameter vectors (N, P) each system's fault-free reference is simulated with (a copy): nominal
+        until ``set_reference`` gives a system its own healthy machine."""
+        return self._theta[self.n :].copy()
+
+    def set_reference(self, systems: np.ndarray, parameters: np.ndarray) -> None:
+        """Simulate the references of ``systems`` (indices or mask) with ``parameters`` (one row (P,) or a row
+        per system) from the next window on."""
+        self._theta[self.n :][systems] = parameters
+
     def start(self, rngs: Sequence[np.random.Generator], mask: np.ndarray) -> None:
         """New episodes for the systems in ``mask``: at rest, a new load."""
         self.stop(mask)
@@ -145,6 +160,24 @@ class Operation:
         sample grid, (N, samples + 1)."""
         return self.loads.signal(start[:, None] + self.window_grid)
 
+    def commissioning(self, systems: np.ndarray, parameters: np.ndarray, seconds: float, rngs: Sequence[np.random.Generator]) -> Window:
+        """``seconds`` of healthy operation of the plants ``systems`` (K,) under their own ``parameters`` (K, P), measured
+        (system i drawing its noise from ``rngs[i]``): the record a machine is commissioned from before its episode.
+        Their loads' clocks move on by ``seconds``; each reference then starts from its plant's state (the
+        commissioned reference describes the machine from there). ``Window``'s arrays have K rows, ``expected`` the
+        plants' own noise-free signals."""
+        systems = np.asarray(systems, dtype=np.intp)
+        samples = window_samples(seconds, self.h)
+        u, du = self.loads.signal(self.elapsed[systems, None] + np.arange(samples + 1) * self.h, systems)
+        loads, rates = self.model.source_inputs(u, du)
+        signals, last = simulate_measured(
+            self.model.state_space, self.h, loads, rates, parameters, self.plant[systems], self.sensors.gain(parameters)
+        )
+        self.plant[systems] = last
+        self.reference[systems] = last
+        self.elapsed[systems] += samples * self.h
+        return Window(measured=self.sensor_noise(signals, [rngs[i] for i in systems.tolist()]), expected=signals, load=u, load_rate=du)
+
     def run(self, parameters: np.ndarray, rngs: Sequence[np.random.Generator]) -> Window:
         """Simulate one window of every plant under its true ``parameters`` (N, P) and of the reference, and measure."""
         u, du = self.load(self.elapsed)
@@ -157,8 +190,32 @@ class Operation:
         return Window(measured=self.sensor_noise(signals[:n], rngs), expected=signals[n:], load=u, load_rate=du)
 
 
-class Degradation:
-    """The wearing components of N systems: which one is faulty, its drift, and the true RUL.
+class WearingComponents:
+    """What both worlds know of the wearing components of a machine: which they are and where they sit.
+
+    Args:
+        model: the machine.
+        wear: how each wearing component wears (a subset of the maintainable ones).
+        components: the maintainable components, in the action space's order.
+    """
+
+    def __init__(self, model: SystemModel, wear: dict[str, WearConfig], components: tuple[str, ...]):
+        unknown = sorted(set(wear) - set(components))
+        if unknown:
+            raise ValueError(f"wear: unknown components {unknown}; maintainable components are {list(components)}")
+        wearing = [c for c in components if c in wear]
+        self.components = tuple(wearing)
+        self.parameter_index = np.array([model.parameter_names.index(c) for c in wearing], dtype=int)  # into the parameter vector
+        self.nominal = model.parameter_vector()
+        self.limits = np.array([model.safe_limits[c] for c in wearing])
+        self.configs = [wear[c] for c in wearing]
+        self._maintainable_index = np.array([components.index(c) for c in wearing], dtype=int)
+        self.n_components = len(components)
+
+
+class Degradation(WearingComponents):
+    """The wearing components of N systems, one fault at a time per system (the v0 world): which one is
+    faulty, its drift, and the true RUL.
 
     Args:
         model: the machine.
@@ -168,24 +225,29 @@ class Degradation:
     """
 
     def __init__(self, model: SystemModel, wear: dict[str, WearConfig], components: tuple[str, ...], n_systems: int):
-        unknown = sorted(set(wear) - set(components))
-        if unknown:
-            raise ValueError(f"wear: unknown components {unknown}; maintainable components are {list(components)}")
-        wearing = [c for c in components if c in wear]
-        self.components = tuple(wearing)
-        self.parameter_index = np.array([model.parameter_names.index(c) for c in wearing])  # into the parameter vector
-        nominal = model.parameter_vector()
-        limits = np.array([model.safe_limits[c] for c in wearing])
-        self.wear = Wear(nominal[self.parameter_index], limits, [wear[c] for c in wearing], n_systems, columns=self.parameter_index)
-        self._maintainable_index = np.array([components.index(c) for c in wearing])
+        super().__init__(model, wear, components)
+        self.wear = Wear(self.nominal[self.parameter_index], self.limits, self.configs, n_systems, columns=self.parameter_index)
 
-    def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray) -> None:
-        """A new fault for the systems in the boolean mask ``systems``, from their ``clock`` (s) on."""
+    def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray, parameters: np.ndarray) -> None:
+        """A new fault for the systems in the boolean mask ``systems``, from their ``clock`` (s) on; their
+        ``parameters`` (N, P) stay nominal."""
         self.wear.start(rngs, clock, systems)
 
     def advance(self, parameters: np.ndarray, running: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> None:
         """Wear the ``running`` machines' parameters (N, P, in place) over ``dt`` seconds from ``clock``."""
         self.wear.advance(parameters, clock, dt, rngs, running)
+
+    def replace(
+        self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray, columns: np.ndarray, parameters: np.ndarray
+    ) -> None:
+        """New components in ``parameters[systems[k], columns[k]]`` (distinct systems; columns of the parameter
+        vector): at nominal, and a new fault where the replaced one was the faulty one."""
+        parameters[systems, columns] = self.nominal[columns]
+        faulty = self.faulty_parameters()[systems] == columns
+        if np.any(faulty):
+            fresh = np.zeros(len(parameters), dtype=bool)
+            fresh[systems[faulty]] = True
+            self.wear.start(rngs, clock, fresh)
 
     def true_rul(self, parameters: np.ndarray, clock: np.ndarray) -> np.ndarray:
         """Each system's true remaining useful life (s), (N,)."""
@@ -204,3 +266,58 @@ class Degradation:
         index among the maintainable ones."""
         arrived = clock >= self.wear.arrival
         return np.where(arrived, self._maintainable_index[self.wear.faulty] + 1, 0)
+
+
+class PartsDegradation(WearingComponents):
+    """Every wearing component of N systems ageing at once (the v1 world, ``ea_gym.degradation.PartsWear``):
+    each starts within its tolerance, ages in the background and from its own fault's arrival on.
+
+    Args:
+        model, wear, components, n_systems: as ``Degradation``'s; the components left out of ``wear`` stay at
+            their nominal values and never age.
+        tolerance: half-width of the parts' starting values' spread, fraction of each safe span.
+        background: background ageing, fraction of the distance from nominal to the limit per second.
+    """
+
+    def __init__(
+        self, model: SystemModel, wear: dict[str, WearConfig], components: tuple[str, ...], n_systems: int, tolerance: float,
+        background: float,
+    ):
+        super().__init__(model, wear, components)
+        self.wear = PartsWear(
+            self.nominal[self.parameter_index], self.limits, self.configs, n_systems, columns=self.parameter_index,
+            tolerance=tolerance, background=background,
+        )
+        self._part_of_column = {c: d for d, c in enumerate(self.parameter_index.tolist())}
+
+    def start(self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray, parameters: np.ndarray) -> None:
+        """New parts throughout the systems in the boolean mask ``systems``: their ``parameters`` (N, P) drawn within
+        tolerance, a wear process each, from their ``clock`` (s) on."""
+        self.wear.start(rngs, clock, systems, parameters)
+
+    def advance(self, parameters: np.ndarray, running: np.ndarray, clock: np.ndarray, dt: float, rngs: Sequence[np.random.Generator]) -> None:
+        """Age the ``running`` machines' parameters (N, P, in place) over ``dt`` seconds from ``clock``."""
+        self.wear.advance(parameters, clock, dt, rngs, running)
+
+    def replace(
+        self, rngs: Sequence[np.random.Generator], clock: np.ndarray, systems: np.ndarray, columns: np.ndarray, parameters: np.ndarray
+    ) -> None:
+        """New components in ``parameters[systems[k], columns[k]]``: a wearing part drawn within tolerance with a
+        new wear process, another at nominal."""
+        parameters[systems, columns] = self.nominal[columns]
+        wearing = np.array([c in self._part_of_column for c in np.asarray(columns).tolist()], dtype=bool)
+        parts = np.array([self._part_of_column[c] for c in np.asarray(columns)[wearing].tolist()], dtype=int)
+        self.wear.install(rngs, clock, np.asarray(systems)[wearing], parts, parameters)
+
+    def true_rul(self, parameters: np.ndarray, clock: np.ndarray) -> np.ndarray:
+        """Each maintainable component's true remaining useful life (s), (N, n): its mean trend's time to its limit
+        (``PartsWear.true_rul``), inf for a component that does not age."""
+        rul = np.full((len(parameters), self.n_components), np.inf)
+        rul[:, self._maintainable_index] = self.wear.true_rul(parameters, clock)
+        return rul
+
+    def degrading(self, clock: np.ndarray) -> np.ndarray:
+        """Whether each maintainable component's fault has arrived (it degrades beyond its background ageing), (N, n)."""
+        arrived = np.zeros((len(clock), self.n_components), dtype=bool)
+        arrived[:, self._maintainable_index] = self.wear.arrived(clock)
+        return arrived

@@ -20,8 +20,13 @@ def render_ansi(env: Any, history: list[dict[str, Any]]) -> str:
     if "diagnosis" in obs:
         lines.append("diagnosis: " + "  ".join(f"{c}={p:.2f}" for c, p in zip(env.diagnosis_classes, obs["diagnosis"])))
         lines.append("RUL (s): {:.1f} [{:.1f}, {:.1f}]".format(*obs["rul"]))
+    if "degrading" in obs:  # every part ages: each one's line
+        for c, p, (point, low, high) in zip(core.components, obs["degrading"], obs["rul"]):
+            lines.append(f"{c}: degrading {p:.2f}  RUL (s): {point:.1f} [{low:.1f}, {high:.1f}]")
     truth = "  ".join(f"{n}={v:.4g}" for n, v in info["true_parameters"].items())
-    lines.append(f"true: {truth}  true RUL={info['true_rul']:.1f} s  failed={info['failed']}")
+    true_rul = np.atleast_1d(info["true_rul"])
+    rul_text = "  ".join(f"{v:.1f}" for v in true_rul) if len(true_rul) > 1 else f"{true_rul[0]:.1f}"
+    lines.append(f"true: {truth}  true RUL={rul_text} s  failed={info['failed']}")
     lines += [f"event: {e}" for e in info["events"]]
     return "\n".join(lines) + "\n"
 
@@ -44,11 +49,16 @@ def render_rgb(env: Any, history: list[dict[str, Any]]) -> np.ndarray:
             if "parameter_estimate" in history[-1]["observation"]:
                 estimate = np.array([h["observation"]["parameter_estimate"][d] for h in history])
                 axes[1].plot(steps, estimate, "--", color=line.get_color(), label=f"{name} estimate")
-        if "rul" in history[-1]["observation"]:
-            rul = np.array([h["observation"]["rul"] for h in history])
-            axes[2].plot(steps, rul[:, 0], label="estimated RUL")
-            axes[2].fill_between(steps, rul[:, 1], rul[:, 2], alpha=0.3)
-        axes[2].plot(steps, [min(h["info"]["true_rul"], env.config.rul_max) for h in history], "k:", label="true RUL")
+        # one RUL (v0) or one per part (v1): rows (steps, parts, 3) either way
+        true_rul = np.minimum(np.array([np.atleast_1d(h["info"]["true_rul"]) for h in history]), env.config.rul_max)
+        names = list(core.components) if true_rul.shape[1] > 1 else [""]
+        rul = np.array([np.reshape(h["observation"]["rul"], (-1, 3)) for h in history]) if "rul" in history[-1]["observation"] else None
+        for d, name in enumerate(names):
+            suffix = f" of {name}" if name else ""
+            color = axes[2].plot(steps, true_rul[:, d], ":", label=f"true RUL{suffix}")[0].get_color()
+            if rul is not None:
+                axes[2].plot(steps, rul[:, d, 0], color=color, label=f"estimated RUL{suffix}")
+                axes[2].fill_between(steps, rul[:, d, 1], rul[:, d, 2], color=color, alpha=0.3)
     axes[0].set_ylabel("EA (J)")
     axes[1].set_ylabel("position in safe range")
     axes[1].axhline(0.0, color="r", lw=0.8)

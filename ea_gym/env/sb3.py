@@ -23,7 +23,8 @@ class MaintenanceVecEnv(VecEnv):
 
     Args:
         num_envs: N.
-        **kwargs: the environments' keyword arguments (system, obs_mode, ...).
+        **kwargs: the environments' keyword arguments (system, obs_mode, ...); v0's world unless they say otherwise:
+            ``MaintenanceVecEnv(N, **ea_gym.env.V1_SETTINGS)`` is v1's, where every part ages.
     """
 
     def __init__(self, num_envs: int, **kwargs: Any):

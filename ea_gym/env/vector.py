@@ -187,7 +187,7 @@ class SpringMassDamperVectorEnv(BondGraphMaintenanceVectorEnv):
 
     def __init__(self, num_envs: int = 1, **kwargs: Any):
         if "system" in kwargs:
-            raise TypeError("SpringMassDamper-v0 is the spring-mass-damper; use BondGraphMaintenance-v0 for another system")
+            raise TypeError("SpringMassDamper is the spring-mass-damper; use BondGraphMaintenance (same version) for another system")
         super().__init__(num_envs, system="spring_mass_damper", **kwargs)
 
 

@@ -74,7 +74,7 @@ from ea_gym._kernels.tracking import VARIANCE_FLOOR
 from ea_gym.bondgraph.simulation import hermite_coefficients
 from ea_gym.diagnosis.monitor import Monitor
 from ea_gym.models import SystemModel
-from ea_gym.phm.config import JointFilterConfig, PHMConfig
+from ea_gym.phm.config import JointFilterConfig, ModelFitConfig, PHMConfig
 from ea_gym.phm.estimation import ParameterEstimates, StepSignals, checked_arguments, checked_signals
 from ea_gym.phm.fit import StepInnovations
 from ea_gym.phm.isolation import EvidenceWeights
@@ -82,12 +82,17 @@ from ea_gym.phm.prognosis import DriftPrognosis
 from ea_gym.phm.registry import EstimationStages, register_estimator
 from ea_gym.phm.tracking import transition
 from ea_gym.sensors import Sensors
+from ea_gym.threads import over_rows
 
 #: the central differences' step, relative to the parameter's nominal value: near the cube root of
 #: machine epsilon, where truncation and round-off errors meet
 DIFFERENCE_STEP = 1e-5
 #: probabilities are kept this far from 0 and 1 so that their logs stay finite
 PROBABILITY_FLOOR = 1e-12
+#: a step whose normalized innovations squared exceed this many times their degrees of freedom is one the model does not
+#: explain (the model-fit test's default edge, ``ModelFitConfig.tolerance`` x a band's upper edge of about 1): its
+#: parameter corrections say nothing of a wear's onset, and no part is re-opened on them
+MISFIT = ModelFitConfig.tolerance
 
 
 def degrading_probability(drift: np.ndarray, variance: np.ndarray, rate: np.ndarray) -> np.ndarray:
@@ -160,6 +165,7 @@ class JointFilter:
         self.P = np.zeros((n_systems, size, size))
         self.innovation = np.zeros((n_systems, 0, self.nx))
         self.innovation_covariance = np.zeros((n_systems, 0, self.nx, self.nx))
+        self._innovations: StepInnovations | None = None
         self.started = np.zeros(n_systems, dtype=bool)
         # each parameter's CUSUM of its normalized corrections, upward and downward, and how far the corrections of
         # its current run have moved it (its unit)
@@ -249,11 +255,20 @@ class JointFilter:
             Q[:, : self.nx, : self.nx] += load_variance[:, None, None] * held[:, :, None] * held[:, None, :]
         self.innovation = np.empty((self.n, samples, self.nx))
         self.innovation_covariance = np.empty((self.n, samples, self.nx, self.nx))
-        joint_samples(
-            M0, dM, anchor, np.ascontiguousarray(w), drift_time, Q, measured, variance, self.momenta, self.inertia,
-            self.lo, self.hi, self.x, self.P, self.innovation, self.innovation_covariance,
-        )
-        self._watch_onsets(watched, predicted, predicted_variance)
+        w = np.ascontiguousarray(w)
+
+        def filter_rows(start: int, stop: int) -> None:  # the systems' filters are independent: rows split between threads
+            rows = slice(start, stop)
+            joint_samples(
+                M0[rows], dM[rows], anchor[rows], w[rows], drift_time[rows], Q[rows], measured[rows], variance[rows], self.momenta,
+                self.inertia, self.lo, self.hi, self.x[rows], self.P[rows], self.innovation[rows], self.innovation_covariance[rows],
+            )
+
+        over_rows(filter_rows, self.n)
+        self._innovations = None
+        step = self.innovations()
+        # where the model does not explain the step (the model-fit test's edge), its corrections tell no onset
+        self._watch_onsets(watched & (step.nis <= MISFIT * step.dof), predicted, predicted_variance)
         return self.estimates(t)
 
     def _predicted_parameters(self, span: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -290,8 +305,11 @@ class JointFilter:
             rows, parameters = np.nonzero(fired)
             side = np.argmax(self.onset_sums[rows, parameters], axis=-1)
             moved_by, over = self.onset_runs[rows, parameters, side], self.onset_times[rows, parameters, side]
-            self.P[rows, thetas[parameters], thetas[parameters]] += moved_by**2
-            self.P[rows, drifts[parameters], drifts[parameters]] += (moved_by / over) ** 2
+            # the parameter never wider than its prior, which knows nothing of the machine (the drift's prior is no bound:
+            # a wear's onset may outrun it, the lightly damped b's on the records of issue 30's tests)
+            theta_prior = self.config.theta_prior * self.span[parameters]
+            self.P[rows, thetas[parameters], thetas[parameters]] += np.minimum(np.abs(moved_by), theta_prior) ** 2
+            self.P[rows, drifts[parameters], drifts[parameters]] += (np.abs(moved_by) / over) ** 2
             self.onset_sums[fired] = self.onset_runs[fired] = self.onset_times[fired] = 0.0
 
     def _start(self, rows: np.ndarray, first: np.ndarray, variance: np.ndarray) -> None:
@@ -382,9 +400,11 @@ class JointFilter:
     def innovations(self) -> StepInnovations:
         """The last step's normalized innovations squared, y^T S^-1 y summed over its samples, and their
         terms (samples x signals) (``ea_gym.phm.fit.InnovationSource``)."""
-        y, S = self.innovation, self.innovation_covariance
-        nis = np.einsum("nli,nli->n", y, np.linalg.solve(S, y[..., None])[..., 0]) if y.shape[1] else np.zeros(self.n)
-        return StepInnovations(nis=nis, dof=np.full(self.n, float(y.shape[1] * y.shape[2])))
+        if self._innovations is None:  # once a step: the filter's own onset watch reads them, then the model-fit test
+            y, S = self.innovation, self.innovation_covariance
+            nis = np.einsum("nli,nli->n", y, np.linalg.solve(S, y[..., None])[..., 0]) if y.shape[1] else np.zeros(self.n)
+            self._innovations = StepInnovations(nis=nis, dof=np.full(self.n, float(y.shape[1] * y.shape[2])))
+        return self._innovations
 
     @property
     def diffusion(self) -> np.ndarray:

@@ -1,6 +1,7 @@
-"""Environment throughput in three regimes, side by side: healthy, in alarm, and the shipped PPO agent's own.
+"""Environment throughput in four regimes, side by side: healthy, in alarm, the shipped PPO agent's own, and v1's in alarm.
 
-What it measures, in one run, on ``ea_gym/SpringMassDamper-v0`` with the full PHM chain (obs_mode "phm",
+What it measures, in one run, on ``ea_gym/SpringMassDamper-v0`` (``ea_gym/SpringMassDamper-v1`` in the ``v1``
+regime) with the full PHM chain (obs_mode "phm",
 ``continue_after_failure=True``), for N in ``--sizes`` (default 1, 16, 256, 1024): env-steps per second
 of the native batched environment (``vectorization_mode="vector_entry_point"``; its compiled kernels' rows
 on ``ea_gym.kernel_threads()`` threads, the cores available, and where that is more than one and N is
@@ -15,6 +16,11 @@ takes minutes), and at N = 1 of the single environment itself (``gym.make``). Th
   evidence) and the prognosis run for them at every step.
 * ``ppo``: the shipped agent ``agents/data/ppo_phm`` (read from its pickle-free files) chooses the
   actions in the environment it was trained in (its ``env_kwargs``); only ``step`` is timed.
+* ``v1``: the v1 environment (every part ageing: background ageing from the start, parts within their
+  tolerances, the joint filter and the model-fit test), every part's fault arriving in the first second,
+  no maintenance: after ``--alarm-warmup`` steps most systems are in alarm, every part of every system
+  degrading. Its figure beside the ``alarm`` regime's is v1's cost against v0's (issue 30 asks >= 0.8x at
+  N = 256).
 
 Each figure comes with the share of systems in alarm (mean over the timed steps), the CPU seconds
 the process used per wall second (below 1 on a machine others load), the env-steps per CPU second
@@ -28,8 +34,8 @@ fresh processes).
 on two threads the figures of this VM vary by +-15 % from run to run, on one by a few per cent.
 
 Run from a checkout's root: ``python experiments/benchmarks/bench_throughput.py [--sizes 1 16 256 1024]
-[--regimes healthy alarm ppo] [--repeats K] [--profile] [--json PATH] [--smoke]``; the defaults take a few minutes
-on an unloaded 2-core machine.
+[--regimes healthy alarm ppo v1] [--repeats K] [--profile] [--json PATH] [--smoke]``; the defaults take a few minutes
+on an unloaded 2-core machine. v1 against v0 in alarm at N = 256 alone: ``--regimes alarm v1 --sizes 256 --sync-max 0``.
 """
 
 from __future__ import annotations
@@ -53,13 +59,13 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))  # this checkout's ea_gym, agents and experiments.common, installed or not
 
 from ea_gym.degradation import WearConfig
-from ea_gym.env import ENV_ID
+from ea_gym.env import ENV_ID, V1_ENV_IDS
 from ea_gym.files import write_json
 from ea_gym.models import get_model
 from ea_gym.threads import MIN_ROWS_PER_THREAD, kernel_threads, set_kernel_threads, single_threaded_torch
 from experiments.common import parse_with_smoke
 
-REGIMES = ("healthy", "alarm", "ppo")
+REGIMES = ("healthy", "alarm", "ppo", "v1")
 AGENT = ROOT / "agents" / "data" / "ppo_phm"
 CARRY_ON = 0  # the action table's first entry
 #: the shipped model's components, each worn by a fault of the given arrival window (s after reset)
@@ -76,7 +82,7 @@ def regime_kwargs(regime: str) -> dict[str, Any]:
     base: dict[str, Any] = {"obs_mode": "phm", "continue_after_failure": True}
     if regime == "healthy":  # the horizon is 500 s: no fault arrives
         return base | {"wear": {name: WearConfig(arrival=(1e6, 2e6)) for name in COMPONENTS}}
-    if regime == "alarm":
+    if regime in ("alarm", "v1"):  # v1: every part's fault, on top of its background ageing
         return base | {"wear": {name: WearConfig(arrival=(0.0, 1.0)) for name in COMPONENTS}}
     if regime == "ppo":
         from agents.agent_files import read_agent
@@ -101,15 +107,20 @@ def regime_actor(regime: str) -> Actor:
     return act
 
 
-def make_env(kind: str, n: int, kwargs: dict[str, Any]) -> gym.vector.VectorEnv:
+def regime_env_id(regime: str) -> str:
+    """The environment ``regime`` runs: v1's spring-mass-damper in the ``v1`` regime, v0's in the others."""
+    return V1_ENV_IDS[0] if regime == "v1" else ENV_ID
+
+
+def make_env(kind: str, n: int, kwargs: dict[str, Any], env_id: str = ENV_ID) -> gym.vector.VectorEnv:
     """``kind``: "batched" (the native vector env), "sync" (SyncVectorEnv of single envs) or "single" (N = 1,
-    ``gym.make`` behind a batch-of-one adapter)."""
+    ``gym.make`` behind a batch-of-one adapter), of ``env_id``."""
     if kind == "batched":
-        return gym.make_vec(ENV_ID, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
+        return gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", **kwargs)
     if kind == "sync":
-        return SyncVectorEnv([lambda: gym.make(ENV_ID, **kwargs) for _ in range(n)])
+        return SyncVectorEnv([lambda: gym.make(env_id, **kwargs) for _ in range(n)])
     if kind == "single":
-        return _Single(gym.make(ENV_ID, **kwargs))
+        return _Single(gym.make(env_id, **kwargs))
     raise ValueError(f"kind must be batched, sync or single, got {kind!r}")
 
 
@@ -157,7 +168,7 @@ def measure(
 
 def measured(kind: str, n: int, regime: str, steps: int, warmup: int, seed: int, actor: Actor, profile: cProfile.Profile | None) -> dict:
     """``measure`` on the kernel threads as set."""
-    env = make_env(kind, n, regime_kwargs(regime))
+    env = make_env(kind, n, regime_kwargs(regime), regime_env_id(regime))
     observation, _ = env.reset(seed=seed)
     for _ in range(warmup):
         observation = env.step(actor(observation, n))[0]
@@ -191,6 +202,7 @@ def median_run(runs: list[dict]) -> dict:
 #: where a step's time goes: the first stage whose marker is in a function's file path takes its own time
 STAGES = (
     ("tracking filters", ("_kernels/tracking", "phm/tracking")),
+    ("joint filter and model fit", ("_kernels/joint", "phm/joint", "phm/fit")),
     ("isolation network", ("torch/", "diagnosis/classifier", "_kernels/network")),
     ("isolation features", ("diagnosis/features", "_kernels/features", "_kernels/summation", "scipy/signal", "scipy/fft")),
     ("balance evidence and fusion", ("phm/isolation", "_kernels/isolation")),
@@ -230,7 +242,7 @@ def run(args: argparse.Namespace) -> dict:
     threads = kernel_threads()
     for regime in args.regimes:
         actor = regime_actor(regime)
-        warmup = args.alarm_warmup if regime == "alarm" else args.warmup
+        warmup = args.alarm_warmup if regime in ("alarm", "v1") else args.warmup
         rows: dict[str, Any] = {}
         for n in args.sizes:
             # (key, env, kernel threads): the batched env also on one thread where it would split its rows
@@ -254,12 +266,22 @@ def run(args: argparse.Namespace) -> dict:
             profile = cProfile.Profile()
             measure("batched", 256, regime, args.steps, warmup, args.seed, actor, profile, threads=1)
             results["profiles"][regime] = stage_times(profile, args.steps)
+    ratios = v1_over_alarm(results["regimes"])
+    if ratios:
+        results["v1_over_alarm"] = ratios
+        print("\nv1 / v0 in alarm, batched env-steps/s: " + ", ".join(f"N = {n}: {r:.2f}x" for n, r in ratios.items()))
     if args.profile:
         print("\nwhere a batched step's time goes at N = 256 on one kernel thread (ms per step, own time under cProfile):")
         print(f"{'stage':>30} " + " ".join(f"{regime:>8}" for regime in results["profiles"]))
         for stage in next(iter(results["profiles"].values()), {}):
             print(f"{stage:>30} " + " ".join(f"{p[stage]:>8.1f}" for p in results["profiles"].values()))
     return results
+
+
+def v1_over_alarm(regimes: dict[str, Any]) -> dict[str, float]:
+    """The batched env's env-steps/s in the ``v1`` regime over the ``alarm`` regime's, for each N measured in both."""
+    v1, v0 = regimes.get("v1", {}), regimes.get("alarm", {})
+    return {n: v1[n]["batched"]["env_steps_per_s"] / v0[n]["batched"]["env_steps_per_s"] for n in v1 if n in v0}
 
 
 def main(argv: Sequence[str] | None = None) -> int:
