@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 from experiments.common import parse_with_smoke  # noqa: E402
 
 #: modules the scripts import, not scripts
-HELPERS = {"common.py"}
+HELPERS = {"common.py", "studies/part_tracks.py", "studies/records.py"}
 SCRIPTS = sorted(name for name in (path.relative_to(EXPERIMENTS).as_posix() for path in EXPERIMENTS.rglob("*.py")) if name not in HELPERS)
 #: the scripts that need an optional extra: the module that tells whether it is installed
 EXTRAS = {
@@ -156,6 +156,25 @@ def check_torchrl(out: Path, stdout: str) -> None:
 def check_compare_progpy(out: Path, stdout: str) -> None:
     result = read_json(out / "results.json")
     assert result["seeds"] == [0] and list(result["runs"]) == ["mass_m_ramp"]
+    (case, rows), = result["real_cases"].items()
+    assert case == "off-nominal" and set(rows) == {"ea-gym chain (per-part outputs)", "ProgPy UKF, all three parameters as states"}
+    assert all(set(row["error_median"]) == {"k", "m", "b"} and set(row["alpha_lambda"]) == {"k", "b"} for row in rows.values())
+    assert "| off-nominal | b | yes |" in (out / "table.md").read_text()
+
+
+def check_real_machines(out: Path, stdout: str) -> None:
+    import importlib.util
+
+    rows = read_json(out / "results.json")["criteria"]
+    criteria = [row["criterion"].split(":")[0] for row in rows]
+    # every criterion measured on the one system: (a) 4 rows, (b) 4, (c) 4 and the pooled one, (d) a row per misfit
+    assert criteria.count("a. 2-3 parts wearing") == 4 and criteria.count("c. 1 % load noise") == 5 and len(rows) == 1 + 4 + 4 + 5 + 3
+    assert all(row["verdict"] in ("pass", "miss") for row in rows if "UKF" not in row["criterion"] or importlib.util.find_spec("progpy"))
+    # the records agree with ea-gym's simulation; every misfit is said so, nothing named or predicted
+    assert all(row["verdict"] == "pass" for row in rows if row["criterion"].startswith(("records", "d. misfit")))
+    text = (out / "table.md").read_text()
+    assert all(f"| {row['criterion']} | {row['system']} | {row['measured']} |" in text for row in rows)
+    assert (out / "estimates.png").stat().st_size > 0
 
 
 def check_joint_filter(out: Path, stdout: str) -> None:
@@ -259,6 +278,7 @@ RUNS: dict[str, tuple[tuple[str, ...], Callable[[Path, str], None]]] = {
     "studies/from_scratch_diagnosis.py": (("--out", "OUT/diagnosis.json"), check_from_scratch_diagnosis),
     "studies/joint_filter.py": (("--out", "OUT"), check_joint_filter),
     "studies/model_fit.py": (("--out", "OUT"), check_model_fit),
+    "studies/real_machines.py": (("--out", "OUT"), check_real_machines),
     "studies/tracking_accuracy.py": ((), printed("N =   1 systems", "N =   4 systems")),
     "studies/v1_rul.py": (("--out", "OUT"), check_v1_rul),
 }

@@ -25,15 +25,24 @@ every second from 50 to 90 % of the way from onset to End of Life within +-20 % 
 share of those whose 95 % interval covers the true RUL, unbounded intervals counted as misses (and as
 hits, beside it); isolation right at the true End of Life, runs out of runs.
 
+Real machines (issue 30, ``--real-cases``): the spring-mass-damper's independent records
+(``experiments/studies/records.py``: its equations by hand, scipy's ``solve_ivp``; 1 % sensor noise), two or three
+parts wearing with overlapping onsets, two wearing on a machine off its catalogue values (the chain commissioned on a
+separate healthy record), one part wearing with 1 % noise on the load column too. On the same samples: the chain's
+per-part outputs and the UKF with every parameter and its drift as states (``ukf_track``), scored per part by
+``experiments/studies/part_tracks.py`` (the set of parts named degrading, each parameter's error, alpha-lambda and
+coverage per wearing part).
+
     pip install -e '.[compare]'
     python experiments/studies/compare_progpy.py          # -> experiments/results/compare_progpy/
-    python experiments/studies/compare_progpy.py --smoke  # mass ramp, seed 0, the UKF at 20 Hz, no tuning
+    python experiments/studies/compare_progpy.py --smoke  # mass ramp, seed 0, the UKF at 20 Hz, no tuning; off-nominal, times x 0.5
     python experiments/studies/compare_progpy.py --ukf-from experiments/results/compare_progpy/results.json
 
 ``--ukf-from`` runs the chain alone and takes the UKF's rows (its tuning, settings and every run's
 track, rescored here) from an earlier complete run's results.json: the UKF sees only the recorded
 signals, which depend on the scenarios and seeds alone, so its rows are the ones a complete run
-would give. The table's notes and results.json name that file and its run's arguments.
+would give (the real-machine cases' too where that run had them at the same ``--scale``). The table's notes and
+results.json name that file and its run's arguments.
 """
 
 from __future__ import annotations
@@ -56,11 +65,23 @@ from ea_gym.energy import window_samples
 from ea_gym.files import json_ready, save_figure, write_json, write_text
 from ea_gym.metrics import estimation_errors
 from ea_gym.models import SystemModel
-from ea_gym.phm import ESTIMATORS, ChainTiming, PHMChain, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm import ESTIMATORS, ChainTiming, JointFilterConfig, PHMChain, PHMConfig, build_chain, classifier_for, run_signals
+from ea_gym.phm.joint import degrading_probability
 from ea_gym.plant import run_model
 from ea_gym.scenario import Scenario, load_scenario
 from ea_gym.sensors import Sensors, add_sensor_noise
 from experiments.common import parse_with_smoke
+from experiments.studies.part_tracks import (
+    PartTrack,
+    alpha_hits,
+    chain_run,
+    hysteresis,
+    interval_hits,
+    prediction_mask,
+    wear_scores,
+    wear_summary,
+)
+from experiments.studies.records import NOISE, Record, case_record, system_model
 
 SCENARIOS = Path(__file__).resolve().parents[1] / "scenarios"
 NAMES = ("spring_k_ramp", "damper_b_ramp", "mass_m_ramp")
@@ -68,12 +89,11 @@ SEED_SHIFT = 100  # seed i runs with sensors.seed + 100 i
 TUNING_SEEDS = (10, 11, 12)  # the spring scenario's seeds the UKF's process noise is chosen on
 DRIFT_NOISE_GRID = (1e-5, 3e-5, 1e-4, 3e-4)
 DEFAULT_DRIFT_NOISE = 3e-5  # used without tuning (--smoke); the grid's choice at 20 Hz
-#: the smoke run: the mass ramp, seed 0, the UKF at 20 Hz, not tuned
-SMOKE = {"scenarios": ["mass_m_ramp"], "seeds": [0], "ukf_rate": 20.0, "drift_noise": DEFAULT_DRIFT_NOISE}
+#: the smoke run: the mass ramp, seed 0, the UKF at 20 Hz, not tuned; the off-nominal machine at half its times
+SMOKE = {"scenarios": ["mass_m_ramp"], "seeds": [0], "ukf_rate": 20.0, "drift_noise": DEFAULT_DRIFT_NOISE,
+         "real_cases": ["off-nominal"], "scale": 0.5}
 STEP = 1.0  # s of signal per chain update and between predictions
 SETTLE = 10.0  # s after onset from which estimate errors count
-ALPHA = 0.2
-PREDICTION_SPAN = (0.5, 0.9)  # of the way from onset to End of Life
 Z95 = 1.959963984540054
 
 
@@ -150,25 +170,6 @@ def fault_window(scenario: Scenario) -> tuple[float, float]:
             limit = low if v1 < low else high
             return float(onset if onset is not None else t0), t0 + (limit - v0) / (v1 - v0) * (t1 - t0)
     raise ValueError(f"{scenario.source}: fault.profile: {scenario.fault.parameter} never crosses its safe limits {low, high}")
-
-
-def prediction_mask(t: np.ndarray, onset: float, eol: float) -> np.ndarray:
-    """Predictions evaluated by alpha-lambda and coverage: from 50 to 90 % of the way from onset to End of Life."""
-    first, last = (onset + f * (eol - onset) for f in PREDICTION_SPAN)
-    return (t >= first - 1e-9) & (t <= last + 1e-9)
-
-
-def alpha_hits(rul: np.ndarray, rul_true: np.ndarray, alpha: float = ALPHA) -> np.ndarray:
-    """Whether each point RUL (s) lies within +-alpha of the true RUL (bounds inclusive; inf misses).
-
-    ``ea_gym.metrics.alpha_lambda`` judges the one prediction at a single lambda and refuses infinite
-    predictions; issue 17 counts every prediction of a span, a missing one (inf) as a miss."""
-    return np.isfinite(rul) & (np.abs(rul - rul_true) <= alpha * rul_true)
-
-
-def interval_hits(low: np.ndarray, high: np.ndarray, rul_true: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(covers, bounded): whether each RUL interval (s) contains the true RUL, and whether it is bounded."""
-    return (low <= rul_true) & (rul_true <= high), np.isfinite(low) & np.isfinite(high)
 
 
 def drift_rul(value: float, drift: float, covariance: np.ndarray, limits: tuple[float, float], z: float = Z95) -> tuple[float, float, float]:
@@ -363,6 +364,47 @@ def run_ukf(system: SystemModel, signals: Signals, noise: float, estimated: Sequ
         covariances.append(ukf.filter.P.copy())
     ends = t[signals.step :: signals.step][: len(signals.windows)]
     return FilterRecord(ends, np.array(means), np.array(covariances), tuple(model.states))
+
+
+def recorded_signals(record: Record) -> Signals:
+    """An independent record's noisy samples as the chain's 1 s steps see them (step k: samples k step .. (k + 1) step,
+    its first the previous step's last), the load's rate its central difference (``numpy.gradient``: the chain's stream
+    takes it so from the recorded load), the truth the machine's parameters."""
+    measurements = record.measurements
+    step = window_samples(STEP, measurements.sample_period)
+    signals = measurements.signals.T
+    windows = np.stack([signals[:, start : start + step + 1] for start in range(0, signals.shape[1] - step, step)])
+    load_rate = np.gradient(measurements.load, measurements.sample_period)
+    truth = record.machine.values(measurements.t)
+    return Signals(measurements.t, record.clean.T, windows, record.clean.T, measurements.load, load_rate, truth, step)
+
+
+def ukf_track(record: Record, settings: FilterSettings) -> PartTrack:
+    """ProgPy's UKF with every part of the spring-mass-damper and its drift as states, on an independent record, read as the
+    chain's per-part outputs by the chain's rules: P(degrading) = P(|drift| > ``JointFilterConfig.degrading_rate`` x the
+    safe span per s), named from ``name_probability`` until below ``release_probability``; End of Life the drift's crossing
+    (``drift_rul``: Fieller's interval) where named."""
+    system = system_model(record.machine.system)
+    parts = tuple(system.safe_limits)
+    filtered = run_ukf(system, recorded_signals(record), NOISE, parts, settings)
+    slots = [filtered.states.index(name) for name in parts]
+    value, drift = filtered.mean[:, slots], filtered.mean[:, [s + 1 for s in slots]]
+    variance = filtered.covariance[:, slots, slots]
+    drift_variance = filtered.covariance[:, [s + 1 for s in slots], [s + 1 for s in slots]]
+    limits = np.array([system.safe_limits[name] for name in parts])
+    rules = JointFilterConfig()
+    degrading = degrading_probability(drift, drift_variance, rules.degrading_rate * (limits[:, 1] - limits[:, 0]))
+    named = hysteresis(degrading, rules.name_probability, rules.release_probability)
+    ends = np.full((3,) + value.shape, np.inf)
+    for s, j in zip(*np.nonzero(named)):
+        pair = filtered.covariance[s][np.ix_([slots[j], slots[j] + 1], [slots[j], slots[j] + 1])]
+        ends[:, s, j] = filtered.t[s] + np.array(drift_rul(value[s, j], drift[s, j], pair, tuple(limits[j])))
+    steps = len(filtered.t)
+    return PartTrack(
+        t=filtered.t, parts=parts, value=value, std=np.sqrt(variance), degrading=degrading, named=named, eol=ends[0], eol_low=ends[1],
+        eol_high=ends[2], alarm=named.any(axis=1), isolated=np.full(steps, -1), fits=np.ones(steps, dtype=bool),
+        misfit=np.zeros(steps, dtype=bool), machine_eol=ends[0].min(axis=1),
+    )
 
 
 def isolate_by_drift(record: FilterRecord, system: SystemModel) -> list[str]:
@@ -574,10 +616,12 @@ class EarlierUKF:
     tuning: list[dict[str, Any]]
     tracks: dict[str, dict[str, list[Track]]]
     source: dict[str, Any]
+    real: dict[str, dict[str, Any]]
 
 
-def read_earlier_ukf(path: Path, names: Sequence[str], seeds: Sequence[int]) -> EarlierUKF:
-    """The UKF's rows of ``path`` (a results.json of this script), for ``names`` and ``seeds``.
+def read_earlier_ukf(path: Path, names: Sequence[str], seeds: Sequence[int], scale: float) -> EarlierUKF:
+    """The UKF's rows of ``path`` (a results.json of this script), for ``names`` and ``seeds``, and its real-machine cases'
+    where it ran them at the time ``scale``.
 
     Raises:
         ValueError: the file lacks a scenario, a UKF method, or ran other seeds.
@@ -592,7 +636,63 @@ def read_earlier_ukf(path: Path, names: Sequence[str], seeds: Sequence[int]) -> 
             raise ValueError(f"--ukf-from: {path} has no UKF runs of {name}")
         tracks[name] = {method: [read_track(run) for run in runs[method]] for method in (UKF, UKF_ALL)}
     source = {"path": str(path), "arguments": data.get("arguments"), **({"reused_from": data["ukf_source"]} if "ukf_source" in data else {})}
-    return EarlierUKF(FilterSettings(**data["ukf"]), data.get("tuning", []), tracks, source)
+    # the real-machine cases' UKF summaries, where that run had them at the same time scale (else they are run again)
+    real = {case: rows[UKF_ALL] for case, rows in data.get("real_cases", {}).items() if UKF_ALL in rows and data.get("real_scale") == scale}
+    return EarlierUKF(FilterSettings(**data["ukf"]), data.get("tuning", []), tracks, source, real)
+
+
+# ---------------------------------------------------------------------------------------------------
+# real machines (issue 30): several parts wearing, a machine off its catalogue values, a noisy load column
+# ---------------------------------------------------------------------------------------------------
+
+REAL_SYSTEM = "spring_mass_damper"
+#: case -> (the records' case in ``records.CASES``, the load column's noise)
+REAL_CASES = {"two parts": ("two parts", 0.0), "three parts": ("three parts", 0.0), "off-nominal": ("off-nominal", 0.0),
+              "noisy load": ("single part", NOISE)}
+#: the UKF's prior spread (fraction of nominal) on an off-nominal machine: as wide as the joint filter's prior (0.15 of the safe span,
+#: 3 to 6 % of nominal here); 0.02, 0.05 and 0.1 gave errors within 30 % of each other on seed 0
+OFF_NOMINAL_SPREAD = 0.05
+REAL_CHAIN = "ea-gym chain (per-part outputs)"
+
+
+def real_case(case: str, seeds: Sequence[int], scale: float, settings: FilterSettings | None, log: Any) -> dict[str, dict[str, Any]]:
+    """The chain and ProgPy's UKF (every parameter jointly; not run where ``settings`` is None) on one real-machine case's records:
+    each one's ``part_tracks.wear_summary`` and run time per record."""
+    kind, load_noise = REAL_CASES[case]
+    runs: dict[str, list[dict[str, Any]]] = {REAL_CHAIN: [], UKF_ALL: []}
+    seconds = {REAL_CHAIN: 0.0, UKF_ALL: 0.0}
+    for seed in seeds:
+        record, healthy = case_record(REAL_SYSTEM, kind, seed, scale, load_noise)
+        began = time.perf_counter()
+        track = chain_run(record, load_noise=load_noise, commissioning=healthy if kind == "off-nominal" else None)
+        runs[REAL_CHAIN].append(wear_scores(track, record.machine))
+        seconds[REAL_CHAIN] += time.perf_counter() - began
+        if settings is not None:
+            began = time.perf_counter()
+            told = replace(settings, value_spread=OFF_NOMINAL_SPREAD) if kind == "off-nominal" else settings
+            runs[UKF_ALL].append(wear_scores(ukf_track(record, told), record.machine))
+            seconds[UKF_ALL] += time.perf_counter() - began
+        log(f"  {case}, seed {seed}: " + ", ".join(f"{method} {seconds[method]:.0f} s so far" for method in runs))
+    return {method: {**wear_summary(done), "seconds_per_record": seconds[method] / len(done)} for method, done in runs.items() if done}
+
+
+def real_table(cases: dict[str, dict[str, dict[str, Any]]]) -> str:
+    """Per real-machine case: each parameter's median error by both filters and their ratio; the set named, alpha-lambda and
+    coverage per wearing part, and the time per record of each."""
+    lines = ["| case | parameter | wearing | chain median abs error | UKF median abs error | chain / UKF |", "|---|---|---|---|---|---|"]
+    for case, rows in cases.items():
+        chain, ukf = rows[REAL_CHAIN], rows[UKF_ALL]
+        for part, error in chain["error_median"].items():
+            wearing = "yes" if part in chain["alpha_lambda"] else "no"
+            lines.append(f"| {case} | {part} | {wearing} | {error:.3g} | {ukf['error_median'][part]:.3g} | {error / ukf['error_median'][part]:.2f} |")
+    lines += ["", "| case | method | set named exactly | alpha-lambda per wearing part | RUL 95 % coverage per wearing part | s per record |",
+              "|---|---|---|---|---|---|"]
+    for case, rows in cases.items():
+        for method, row in rows.items():
+            alpha = ", ".join(f"{part} {value:.2f}" for part, value in row["alpha_lambda"].items())
+            coverage = ", ".join(f"{part} {value:.2f}" for part, value in row["coverage"].items())
+            lines.append(f"| {case} | {method} | {row['set_named']:.3f} | {alpha} | {coverage} | {row['seconds_per_record']:.1f} |")
+    return "\n".join(lines) + "\n"
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -610,7 +710,12 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
     parser.add_argument("--drift-noise", type=float, default=None, help="the UKF's drift noise, not tuned (default: tuned on seeds 10..12)")
     parser.add_argument("--out", type=Path, default=Path(__file__).resolve().parents[1] / "results" / "compare_progpy", help="output folder")
     parser.add_argument("--ukf-from", type=Path, default=None, help="run the chain alone, the UKF's rows from this earlier results.json")
+    parser.add_argument("--real-cases", nargs="*", choices=list(REAL_CASES), default=list(REAL_CASES),
+                        help="issue 30's real-machine cases on independent records (default all; none: leave them out)")
+    parser.add_argument("--scale", type=float, default=1.0, help="the real-machine cases' onsets, times to the limit and lengths multiplied by it")
     args = parse_with_smoke(parser, argv, SMOKE)
+    if not 0.2 <= args.scale <= 10:
+        parser.error(f"--scale: expected a factor in [0.2, 10], got {args.scale}")
     if any(seed < 0 for seed in args.seeds):
         parser.error(f"--seeds: must be >= 0, got {args.seeds}")
     if args.ukf_rate is not None and not args.ukf_rate > 0:
@@ -633,7 +738,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     earlier = None
     if args.ukf_from is not None:
         try:
-            earlier = read_earlier_ukf(args.ukf_from, args.scenarios, args.seeds)
+            earlier = read_earlier_ukf(args.ukf_from, args.scenarios, args.seeds, args.scale)
         except (ValueError, KeyError, TypeError, json.JSONDecodeError) as error:
             print(f"compare_progpy: {error}", file=sys.stderr)
             return 2
@@ -664,6 +769,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         tracks[name] = {**(earlier.tracks[name] if earlier else {}), **{method: [run[method] for run in runs] for method in runs[0]}}
         for method, method_tracks in tracks[name].items():
             summary.setdefault(method, {})[name] = summarise([score_run(t, scenario) for t in method_tracks], scenario.fault.parameter)
+    real: dict[str, dict[str, dict[str, Any]]] = {}
+    for case in args.real_cases:
+        log(f"{case} ({REAL_SYSTEM}, independent records):")
+        rows = real_case(case, args.seeds, args.scale, None if earlier and case in earlier.real else settings, log)
+        real[case] = {**rows, **({UKF_ALL: earlier.real[case]} if earlier and case in earlier.real else {})}
     markdown = table(summary, scenarios)
     notes = (
         f"\nSeeds {args.seeds} (sensors.seed + 100 i); the UKF at {settings.rate:g} Hz (one sample in {spring.sample_rate / settings.rate:g} "
@@ -674,12 +784,20 @@ def main(argv: Sequence[str] | None = None) -> int:
         + f". Errors from {SETTLE:g} s after onset to the true End of Life (the chain's estimate against the truth at the time it "
         "describes); alpha-lambda (alpha 0.2) and coverage over predictions every second from 50 to 90 % of the way from onset to End of Life.\n"
     )
+    if real:
+        notes += (f"\n## Real machines: several parts wearing, off-nominal machines, a noisy load column ({REAL_SYSTEM})\n\nIndependent "
+                  "records (experiments/studies/records.py: the equations by hand, scipy's solve_ivp), 1 % sensor noise, seeds "
+                  f"{args.seeds}, times x {args.scale:g}: the chain's per-part outputs against ProgPy's UKF with every parameter and its drift as "
+                  f"states on the same samples (on the off-nominal machine its prior spread {OFF_NOMINAL_SPREAD:g} of nominal; the chain "
+                  "commissioned on a separate 30 s healthy record); errors from 10 s after the first onset, the set named from 30 s after "
+                  "each onset, alpha-lambda and coverage as above per wearing part (experiments/studies/part_tracks.py).\n\n" + real_table(real))
     write_text(args.out / "table.md", markdown + notes)
     plot_estimates(tracks, scenarios, args.out / "estimates.png")
     write_json(args.out / "results.json", json_ready({
         "arguments": list(argv if argv is not None else sys.argv[1:]),
         "seeds": args.seeds, "ukf": {**vars(settings)}, "tuning": tuning, **({"ukf_source": earlier.source} if earlier else {}), "summary": summary,
         "runs": {name: {method: [track_data(t) for t in runs] for method, runs in by_method.items()} for name, by_method in tracks.items()},
+        "real_cases": real, "real_scale": args.scale,
     }))
     print(markdown + notes)
     return 0
