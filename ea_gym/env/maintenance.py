@@ -83,7 +83,7 @@ class BondGraphMaintenanceEnv(HorizonSpec, gym.Env[Observation, np.int64]):
     | `ea`, `eai`, `residual`, `time_since_maintenance`, `maintenance_in_progress` | as v0 | as v0 |
     | `degrading` | (n,) | each part's probability of degrading (its drift beyond `JointFilterConfig.degrading_rate` of its safe span per s) |
     | `parameter_estimate` | (n,) | each part's joint estimate, its position in the safe range, in [-1, 2] |
-    | `rul` | (n, 3) | each part's RUL (s) from its estimated drift, whether or not it is named degrading: point, interval low, interval high, clipped to [0, `rul_max`] |
+    | `rul` | (n, 3) | each part's RUL (s) from its drift, named degrading or not: point, low, high, clipped to [0, `rul_max`] |
 
     `obs_mode` selects the information regime: `"phm"` (the full chain, above), `"sensors"` (measured
     signal features only: no `diagnosis`, `degrading`, `parameter_estimate` or `rul`) or `"oracle"` (the
