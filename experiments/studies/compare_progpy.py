@@ -785,7 +785,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "describes); alpha-lambda (alpha 0.2) and coverage over predictions every second from 50 to 90 % of the way from onset to End of Life.\n"
     )
     if real:
-        notes += (f"\n## Real machines: several parts wearing, off-nominal machines, a noisy load column ({REAL_SYSTEM})\n\nIndependent "
+        notes += (f"\n# Real machines: several parts wearing, off-nominal machines, a noisy load column ({REAL_SYSTEM})\n\nIndependent "
                   "records (experiments/studies/records.py: the equations by hand, scipy's solve_ivp), 1 % sensor noise, seeds "
                   f"{args.seeds}, times x {args.scale:g}: the chain's per-part outputs against ProgPy's UKF with every parameter and its drift as "
                   f"states on the same samples (on the off-nominal machine its prior spread {OFF_NOMINAL_SPREAD:g} of nominal; the chain "
