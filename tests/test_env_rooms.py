@@ -68,9 +68,9 @@ def test_env_config_overrides_and_phm_settings():
     custom = EnvConfig(phm=PHMConfig(isolation=IsolationConfig(frame=10.0), timing=ChainTiming(noise=0.5))).phm_config
     assert custom.isolation.frame == 10.0 and custom.timing.noise == 0.01  # the env's noise is the chain's
     assert custom.fit == no_fit and custom.joint == alone
-    # where every part ages: the joint filter, the model-fit test on, the settings given kept
+    # where every part ages: the joint filter with every part's End of Life, the model-fit test on, the settings given kept
     every = EnvConfig(step_seconds=5.0, window_seconds=1.0, noise=0.02, concurrent_wear=True)
-    assert every.phm_config == PHMConfig(timing=timing, estimator_kind="joint")
+    assert every.phm_config == PHMConfig(timing=timing, estimator_kind="joint", joint=JointFilterConfig(end_of_life="every"))
     assert dataclasses.replace(every, phm=PHMConfig(isolation=IsolationConfig(frame=10.0))).phm_config.estimator_kind == "tracking"
 
 
